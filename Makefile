@@ -1,0 +1,40 @@
+# Reproduce JAX-SPH (Toshev et al. 2024) figures. `make fig5` is the main job, `make test` the tests.
+# PROFILE=paper (default) runs the paper's sizes; PROFILE=smoke a small, fast version of each target.
+PROFILE ?= paper
+PY      := .venv/bin/python
+VENV    := .venv/.stamp
+RESULTS := results/$(PROFILE)
+# Every run depends on the core: editing sph/ re-runs what uses it.
+CORE    := $(shell find sph -name '*.py' 2>/dev/null)
+export PYTHONPATH := $(CURDIR)
+
+.PHONY: setup setup-lb test bench fig4 fig5 clean help
+.DEFAULT_GOAL := help
+
+help:
+	@echo "make fig4 fig5 [PROFILE=smoke]  2D Taylor-Green vortex (paper Figs. 4-5)"
+	@echo "make bench                      particle-steps per second, TGV 2D"
+	@echo "make test                       test suite"
+	@echo "make setup / setup-lb           core environment / LagrangeBench environment"
+
+setup: $(VENV)
+$(VENV): environment.txt
+	python3 -m venv .venv
+	.venv/bin/pip install --quiet --upgrade pip
+	.venv/bin/pip install --quiet -r environment.txt
+	touch $@
+
+setup-lb: .venv-lb/.stamp
+.venv-lb/.stamp: environment.txt environment-lagrangebench.txt scripts/setup_lagrangebench.sh
+	bash scripts/setup_lagrangebench.sh
+
+test: $(VENV) .venv-lb/.stamp
+	$(PY) -m pytest -q tests
+
+bench: $(VENV)
+	$(PY) bench/bench_tgv.py
+
+include experiments/*/rules.mk
+
+clean:
+	rm -rf results

@@ -1,0 +1,1 @@
+"""Case definitions: scenes for the validation problems."""

@@ -1,0 +1,108 @@
+"""Frozen, validated configuration of the material, the numerics and the declared effects."""
+from dataclasses import dataclass
+from typing import Optional
+
+from .configtools import require
+from .kernels import KERNELS
+from .precision import DTYPES
+
+
+@dataclass(frozen=True)
+class Material:
+    """A weakly compressible fluid.
+
+    rho_ref  reference density
+    eta      dynamic viscosity eta = rho nu
+    u_ref    reference (maximum expected) velocity; sets the artificial sound speed c_ref
+    """
+
+    rho_ref: float = 1.0
+    eta: float = 0.01
+    u_ref: float = 1.0
+
+    def __post_init__(self):
+        require(self.rho_ref > 0, "material.rho_ref", f"must be positive, got {self.rho_ref}")
+        require(self.eta >= 0, "material.eta", f"must be >= 0, got {self.eta}")
+        require(self.u_ref > 0, "material.u_ref", f"must be positive, got {self.u_ref}")
+
+
+@dataclass(frozen=True)
+class Effects:
+    """The physics a scene declares. The step is assembled from exactly these.
+
+    tvf                   transport-velocity formulation (Adami 2013)
+    riemann               Riemann SPH with dissipation limiter (Zhang 2017b); needs density_evolution
+    density_evolution     continuity equation instead of density summation
+    density_reinit_every  Shepard density re-initialization every N steps (0 = off); needs evolution
+    gravity               constant body force vector, or null for none
+    """
+
+    tvf: bool = False
+    riemann: bool = False
+    density_evolution: bool = False
+    density_reinit_every: int = 0
+    gravity: Optional[tuple[float, ...]] = None
+
+    def __post_init__(self):
+        require(not (self.riemann and not self.density_evolution), "effects.riemann",
+                "Riemann SPH evolves density with the Riemann velocity (Zhang 2017b, eq. 8): "
+                "set effects.density_evolution: true")
+        require(not (self.riemann and self.tvf), "effects.tvf",
+                "the transport-velocity formulation is not combined with Riemann SPH here; choose one")
+        require(self.density_reinit_every >= 0, "effects.density_reinit_every",
+                f"must be >= 0, got {self.density_reinit_every}")
+        require(not (self.density_reinit_every and not self.density_evolution),
+                "effects.density_reinit_every",
+                "re-initialization corrects an evolved density: set effects.density_evolution: true")
+
+    def names(self) -> list[str]:
+        """Names of the active effects, for logs and metadata."""
+        out = [n for n in ("tvf", "riemann", "density_evolution") if getattr(self, n)]
+        if self.density_reinit_every:
+            out.append(f"density_reinit_every={self.density_reinit_every}")
+        if self.gravity is not None:
+            out.append("gravity")
+        return out
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Discretization choices.
+
+    kernel, h_factor       kernel name and h = h_factor * dx
+    cfl                    factor of the convective, viscous and body-force time-step limits
+    c_ref_factor           c_ref = c_ref_factor * u_ref (weak compressibility, Ma ~ 0.1)
+    gamma                  Tait exponent
+    p_bg_factor            background pressure in the EoS, p_bg = p_bg_factor * p_ref
+    p_b_factor             TVF background pressure, p_b = p_b_factor * p_ref (Adami 2013)
+    eta_limiter            Riemann dissipation limiter eta (Zhang 2017b eq. 11); negative = off
+    dt                     fixed time step instead of the CFL one (null = from the limits)
+    dtype                  float64 or float32
+    skin_factor            neighbour-list skin = skin_factor * dx; lists rebuild after skin/2 motion
+    capacity_multiplier    neighbour slots allocated per particle relative to the current maximum
+    """
+
+    kernel: str = "quintic"
+    h_factor: float = 1.0
+    cfl: float = 0.25
+    c_ref_factor: float = 10.0
+    gamma: float = 1.0
+    p_bg_factor: float = 0.0
+    p_b_factor: float = 1.0
+    eta_limiter: float = 3.0
+    dt: Optional[float] = None
+    dtype: str = "float64"
+    skin_factor: float = 0.5
+    capacity_multiplier: float = 1.25
+
+    def __post_init__(self):
+        require(self.kernel in KERNELS, "numerics.kernel", f"{self.kernel!r} is not one of {sorted(KERNELS)}")
+        require(self.dtype in DTYPES, "numerics.dtype", f"{self.dtype!r} is not one of {sorted(DTYPES)}")
+        require(self.h_factor > 0, "numerics.h_factor", f"must be positive, got {self.h_factor}")
+        require(0 < self.cfl <= 1, "numerics.cfl", f"must be in (0, 1], got {self.cfl}")
+        require(self.c_ref_factor > 0, "numerics.c_ref_factor", f"must be positive, got {self.c_ref_factor}")
+        require(self.gamma > 0, "numerics.gamma", f"must be positive, got {self.gamma}")
+        require(self.dt is None or self.dt > 0, "numerics.dt", f"must be positive or null, got {self.dt}")
+        require(self.skin_factor >= 0, "numerics.skin_factor", f"must be >= 0, got {self.skin_factor}")
+        require(self.capacity_multiplier >= 1, "numerics.capacity_multiplier",
+                f"must be >= 1, got {self.capacity_multiplier}")
