@@ -34,7 +34,7 @@ test: $(VENV) .venv-lb/.stamp
 bench: $(VENV)
 	$(PY) bench/bench_tgv.py
 
-include experiments/*/rules.mk
+include $(wildcard experiments/*/rules.mk)
 
 clean:
 	rm -rf results
