@@ -36,7 +36,9 @@ def _check_type(value, tp, key):
             try:
                 return _check_type(value, a, key)
             except ConfigError as e:
-                errors.append(str(e))
+                errors.append(e)
+        if len(errors) == 1:
+            raise errors[0]
         raise ConfigError(f"{key}: {value!r} does not match {tp}")
     if origin is tuple:
         if not isinstance(value, (list, tuple)):
@@ -95,8 +97,13 @@ def from_mapping(cls, data, where: str = ""):
     try:
         return cls(**kwargs)
     except ConfigError as e:
-        if prefix and not str(e).startswith(prefix):
-            raise ConfigError(prefix + str(e)) from None
+        msg = str(e)
+        if prefix and not msg.startswith(prefix):
+            # classes name their own keys as "<section>.<key>"; drop the section if `where` ends with it
+            section = where.split(".")[-1] + "."
+            if msg.startswith(section):
+                msg = msg[len(section):]
+            raise ConfigError(prefix + msg) from None
         raise
 
 

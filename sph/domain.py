@@ -37,13 +37,13 @@ class Domain:
 
         def disp(ri, rj, **unused):
             dr = ri - rj
-            return dr - side * jnp.round(dr / side)
+            s = jnp.asarray(side, dr.dtype)
+            return dr - s * jnp.round(dr / s)
 
         return disp
 
     def shift(self, r, dr):
         """Move positions by dr, wrapping periodic dimensions back into [0, box)."""
-        box = np.array(self.box, dtype=float)
-        per = np.array(self.periodic)
         r_new = r + dr
-        return jnp.where(per, jnp.mod(r_new, box), r_new)
+        box = jnp.asarray(self.box, r_new.dtype)
+        return jnp.where(np.array(self.periodic), jnp.mod(r_new, box), r_new)

@@ -99,8 +99,8 @@ class WendlandC4:
 
     def dwdr(self, r):
         q = r / self.h
-        # d/dq [(1-q/2)^6 (35/12 q^2 + 3q + 1)] = -(7/3) q (1 + 5q/2) (1-q/2)^5
-        return (self.sigma / self.h) * (-(7.0 / 3.0) * q * (1.0 + 2.5 * q) * _ramp(1.0 - 0.5 * q) ** 5)
+        # d/dq [(1-q/2)^6 (35/12 q^2 + 3q + 1)] = -(14/3) q (1 + 5q/2) (1-q/2)^5
+        return (self.sigma / self.h) * (-(14.0 / 3.0) * q * (1.0 + 2.5 * q) * _ramp(1.0 - 0.5 * q) ** 5)
 
 
 KERNELS = {"quintic": QuinticSpline, "wendland_c2": WendlandC2, "wendland_c4": WendlandC4}

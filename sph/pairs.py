@@ -18,10 +18,11 @@ class Pairs:
 
     j    (N, K) neighbour index (padding clipped to a valid index, see `mask`)
     mask (N, K) true for real neighbours
-    dr   (N, K, dim) r_i - r_j (minimum image)
-    d    (N, K) |r_ij|
+    dr   (N, K, dim) r_i - r_j (minimum image; arbitrary but finite in padded slots)
+    d    (N, K) |r_ij| (beyond the kernel support in padded slots)
     w    (N, K) W(|r_ij|)
     dw   (N, K) dW/dr(|r_ij|)
+    f    (N, K) dW/dr / |r_ij|, the scalar factor of most SPH pair terms
     """
 
     j: jax.Array
@@ -30,6 +31,7 @@ class Pairs:
     d: jax.Array
     w: jax.Array
     dw: jax.Array
+    f: jax.Array
 
     def gather(self, x):
         """x_j for every pair: (N, ...) -> (N, K, ...)."""
@@ -43,12 +45,7 @@ class Pairs:
     @property
     def grad_w(self):
         """Kernel gradient with respect to r_i: dW/dr e_ij (N, K, dim)."""
-        return (self.dw / self.d)[..., None] * self.dr
-
-    @property
-    def f(self):
-        """dW/dr / |r_ij| (N, K), the scalar factor of most SPH pair terms."""
-        return self.dw / self.d
+        return self.f[..., None] * self.dr
 
 
 def pair_geometry(r, idx, displacement, kernel) -> Pairs:
@@ -58,7 +55,6 @@ def pair_geometry(r, idx, displacement, kernel) -> Pairs:
     j = jnp.where(mask, idx, 0)
     dr = jax.vmap(jax.vmap(displacement, (None, 0)), (0, 0))(r, r[j])
     far = 2.0 * kernel.cutoff
-    d2 = jnp.where(mask, jnp.sum(dr * dr, axis=-1), far * far)
-    d = jnp.sqrt(d2)
-    dr = jnp.where(mask[..., None], dr, far)
-    return Pairs(j=j, mask=mask, dr=dr, d=d, w=kernel.w(d), dw=kernel.dwdr(d))
+    d = jnp.sqrt(jnp.where(mask, jnp.sum(dr * dr, axis=-1), far * far))
+    dw = kernel.dwdr(d)
+    return Pairs(j=j, mask=mask, dr=dr, d=d, w=kernel.w(d), dw=dw, f=dw / d)

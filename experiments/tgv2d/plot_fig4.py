@@ -1,0 +1,61 @@
+"""Fig. 4: velocity magnitude per particle of the 2D Taylor-Green vortex at t = 0 and t = t_end
+(method `fig4_method`, default TVF, at the finest dx of the profile).
+
+Reads results/<profile>/tgv2d/<method>_dx<dx>/traj.h5; writes results/<profile>/fig4/fig4.{png,pdf}.
+
+    python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from sph import io  # noqa: E402
+from experiments.tgv2d import settings as S  # noqa: E402
+
+
+def plot(exp: "S.Experiment", results) -> Path:
+    dx = min(exp.dx)
+    traj = io.read_trajectory(S.run_dir(results, exp.fig4_method, dx) / "traj.h5")
+    if "velocity" not in traj:
+        raise SystemExit("fig4 needs the velocity field: add 'velocity' to `keep` in config.yaml")
+    out = Path(results) / "fig4"
+    out.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.0), constrained_layout=True)
+    # marker area in points^2: a square of about one spacing on the ~3.2 in wide unit-square axes
+    size = (1.15 * 3.2 * 72 * dx) ** 2
+    for ax, k in zip(axes, (0, -1)):
+        r, u = traj["position"][k], traj["velocity"][k]
+        speed = np.linalg.norm(u, axis=1)
+        sc = ax.scatter(r[:, 0], r[:, 1], c=speed, s=size, marker="s", linewidths=0, cmap="viridis",
+                        vmin=0.0, vmax=speed.max())
+        ax.set(xlim=(0, 1), ylim=(0, 1), aspect="equal", xlabel="x", ylabel="y",
+               title=f"t = {traj['time'][k]:.3g}")
+        fig.colorbar(sc, ax=ax, label="|u|", shrink=0.9)
+    fig.suptitle(f"2D Taylor-Green vortex, Re = {exp.re:g}, {exp.fig4_method.upper()}, dx = {dx:g} "
+                 f"({traj['particle_type'].shape[0]} particles)")
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig4.{ext}", dpi=150)
+    plt.close(fig)
+    print(f"fig4 -> {out / 'fig4.png'}")
+    return out / "fig4.png"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+"""Fig. 5: maximum velocity u_max(t) and kinetic energy E_kin(t) of the 2D Taylor-Green vortex for
+every method and dx of the profile, against the analytical decay (log scale).
+
+Reads results/<profile>/tgv2d/*/traj.h5 and metrics.csv; writes results/<profile>/fig5/fig5.{png,pdf}
+and results/<profile>/fig5/metrics.csv (a copy of the run metrics).
+
+    python experiments/tgv2d/plot_fig5.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from sph import io  # noqa: E402
+from sph.cases import tgv  # noqa: E402
+from experiments.tgv2d import settings as S  # noqa: E402
+
+COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}
+LABELS = {"sph": "SPH", "tvf": "TVF", "riemann": "Riemann"}
+STYLES = ["-", "--", ":", "-."]
+
+
+def plot(exp: "S.Experiment", results) -> Path:
+    out = Path(results) / "fig5"
+    out.mkdir(parents=True, exist_ok=True)
+    fig, (ax_u, ax_e) = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
+    t = np.linspace(0.0, exp.t_end, 200)
+    ax_u.plot(t, tgv.u_max_exact(t, exp.re), "k", lw=3, alpha=0.25, label="analytical")
+    ax_e.plot(t, tgv.e_kin_exact(t, exp.re), "k", lw=3, alpha=0.25, label="analytical")
+    dxs = sorted(exp.dx)  # finest first: solid lines
+    for i, m in enumerate(exp.methods):
+        color = COLORS.get(m.name, f"C{i + 3}")
+        for j, dx in enumerate(dxs):
+            tr = io.read_trajectory(S.run_dir(results, m.name, dx) / "traj.h5")
+            label = f"{LABELS.get(m.name, m.name)}, dx = {dx:g}"
+            style = dict(color=color, ls=STYLES[j % len(STYLES)], lw=1.4)
+            ax_u.plot(tr["time"], tr["u_max"], label=label, **style)
+            ax_e.plot(tr["time"], tr["e_kin"], label=label, **style)
+    ax_u.set(yscale="log", xlabel="t", ylabel=r"$u_{max}$", xlim=(0, exp.t_end),
+             title=r"max. velocity, exact $e^{-8\pi^2 t/Re}$")
+    ax_e.set(yscale="log", xlabel="t", ylabel=r"$E_{kin}$", xlim=(0, exp.t_end),
+             title=r"kinetic energy, exact $0.25\,e^{-16\pi^2 t/Re}$")
+    ax_e.legend(fontsize=8, ncol=1)
+    for ax in (ax_u, ax_e):
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"2D Taylor-Green vortex, Re = {exp.re:g}")
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig5.{ext}", dpi=150)
+    plt.close(fig)
+    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
+    print(f"fig5 -> {out / 'fig5.png'}, {out / 'metrics.csv'}")
+    return out / "fig5.png"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()

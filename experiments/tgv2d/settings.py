@@ -1,0 +1,158 @@
+"""Settings of the 2D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
+and the fingerprints that decide whether a cached result still matches its inputs."""
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import sph
+from sph.configtools import ConfigError, from_mapping, load_yaml, merge, require, to_mapping
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+CONFIG = HERE / "config.yaml"
+KEEPABLE = ("velocity", "density", "pressure")
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named solver variant: the effects its scene declares."""
+
+    name: str
+    effects: sph.Effects = field(default_factory=sph.Effects)
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """Particle relaxation before the run (JAX-SPH's 'rlx' mode): a jittered lattice at rest,
+    advanced with TVF and an EoS background pressure until the particles are evenly spread.
+
+    steps         number of relaxation steps
+    p_bg_factor   EoS background pressure / p_ref during relaxation
+    noise_factor  standard deviation of the Gaussian lattice jitter / dx
+    seed          seed of the jitter
+    """
+
+    steps: int = 5000
+    p_bg_factor: float = 0.02
+    noise_factor: float = 0.25
+    seed: int = 123
+
+    def __post_init__(self):
+        require(self.steps >= 0, "relaxation.steps", f"must be >= 0, got {self.steps}")
+        require(self.noise_factor >= 0, "relaxation.noise_factor", f"must be >= 0, got {self.noise_factor}")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One profile of the experiment (see config.yaml for the meaning of each key)."""
+
+    methods: tuple[Method, ...]
+    dx: tuple[float, ...]
+    t_end: float
+    case: str = "tgv2d"
+    material: sph.Material = field(default_factory=sph.Material)
+    numerics: sph.Numerics = field(default_factory=sph.Numerics)
+    frames: int = 200
+    eval_times: tuple[float, ...] = (0.5, 1.0, 2.0)
+    keep: tuple[str, ...] = KEEPABLE
+    connectivity_radius_factor: float = 1.45
+    relaxation: Relaxation = field(default_factory=Relaxation)
+    fig4_method: str = "tvf"
+
+    def __post_init__(self):
+        require(len(self.methods) > 0, "methods", "needs at least one method")
+        names = [m.name for m in self.methods]
+        for i, n in enumerate(names):
+            require(names.index(n) == i, f"methods[{i}].name", f"{n!r} appears twice")
+        require(len(self.dx) > 0, "dx", "needs at least one particle spacing")
+        for i, dx in enumerate(self.dx):
+            require(dx > 0 and abs(1.0 / dx - round(1.0 / dx)) < 1e-6, f"dx[{i}]",
+                    f"must divide the unit square into whole cells (1/dx integer), got {dx}")
+        require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
+        require(self.frames >= 1, "frames", f"must be >= 1, got {self.frames}")
+        for i, k in enumerate(self.keep):
+            require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+        require(self.fig4_method in names, "fig4_method", f"{self.fig4_method!r} is not one of the methods {names}")
+
+    @property
+    def re(self) -> float:
+        """Reynolds number rho U L / eta with L = 1 (the unit square)."""
+        return self.material.rho_ref * self.material.u_ref / self.material.eta
+
+    def method(self, name: str) -> Method:
+        return next(m for m in self.methods if m.name == name)
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
+    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
+    data = load_yaml(path)
+    unknown = sorted(set(data) - {"profiles"})
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
+    profiles = data.get("profiles") or {}
+    raw = _resolve(profiles, profile, ())
+    return from_mapping(Experiment, merge(raw, overrides or {}), f"profiles.{profile}")
+
+
+def _resolve(profiles: dict, name: str, seen: tuple) -> dict:
+    if name not in profiles:
+        raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
+    if name in seen:
+        raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
+    own = dict(profiles[name] or {})
+    parent = own.pop("inherit", None)
+    if parent is None:
+        return own
+    if not isinstance(parent, str):
+        raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
+    return merge(_resolve(profiles, parent, seen + (name,)), own)
+
+
+# -- paths ----------------------------------------------------------------------------------------
+def dx_tag(dx: float) -> str:
+    return f"dx{dx:g}"
+
+
+def out_dir(results) -> Path:
+    """results/<profile>/tgv2d."""
+    return Path(results) / "tgv2d"
+
+
+def run_dir(results, method: str, dx: float) -> Path:
+    return out_dir(results) / f"{method}_{dx_tag(dx)}"
+
+
+def relaxed_path(results, dx: float) -> Path:
+    return out_dir(results) / f"relaxed_{dx_tag(dx)}.npy"
+
+
+def metrics_path(results) -> Path:
+    return out_dir(results) / "metrics.csv"
+
+
+# -- fingerprints ---------------------------------------------------------------------------------
+def code_hash(*scripts: str) -> str:
+    """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
+    h = hashlib.sha256()
+    files = sorted((ROOT / "sph").rglob("*.py")) + [HERE / n for n in ("settings.py", *scripts)]
+    for p in files:
+        h.update(str(p.relative_to(ROOT)).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def relax_fingerprint(exp: Experiment, dx: float) -> str:
+    return _digest({"dx": dx, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
+                    "relaxation": to_mapping(exp.relaxation), "code": code_hash("relax.py")})
+
+
+def run_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
+    return _digest({"case": exp.case, "dx": dx, "method": to_mapping(method), "material": to_mapping(exp.material),
+                    "numerics": to_mapping(exp.numerics), "t_end": exp.t_end, "frames": exp.frames,
+                    "keep": list(exp.keep), "relax": relax_fingerprint(exp, dx), "code": code_hash("run.py")})
