@@ -1,6 +1,8 @@
 """Density: summation, continuity equation (evolution) and re-initialization."""
 import jax.numpy as jnp
 
+from .pairs import cdot
+
 
 def summation(pairs, mass, w0):
     """Density summation rho_i = sum_j m_j W_ij, self term m_i W(0) included (Monaghan 1992, eq. 2.7)."""
@@ -13,8 +15,8 @@ def continuity(pairs, rho, mass, u):
     drho_i/dt = rho_i sum_j (m_j / rho_j) (u_i - u_j) . grad_i W_ij
     """
     vol_j = pairs.gather(mass / rho)
-    u_ij = u[:, None, :] - pairs.gather(u)
-    return rho * jnp.sum(vol_j * jnp.sum(u_ij * pairs.grad_w, axis=-1), axis=1)
+    u_ij = pairs.own_vec(u) - pairs.gather_vec(u)
+    return rho * jnp.sum(vol_j * cdot(u_ij, pairs.grad_w), axis=1)
 
 
 def reinitialize(pairs, rho, mass, w0):

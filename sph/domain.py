@@ -42,6 +42,11 @@ class Domain:
 
         return disp
 
+    def minimum_image(self, delta, axis: int, margin: float):
+        """Wrap one component of r_i - r_j into [-side/2, side/2] of the search box (see make_displacement)."""
+        side = float(self.search_box(margin)[axis])
+        return delta - side * jnp.round(delta * (1.0 / side))
+
     def shift(self, r, dr):
         """Move positions by dr, wrapping periodic dimensions back into [0, box)."""
         r_new = r + dr

@@ -1,9 +1,12 @@
 """Momentum equation of weakly compressible SPH with the transport-velocity formulation.
 
 Adami, Hu & Adams (2013), "A transport-velocity formulation for smoothed particle hydrodynamics",
-J. Comput. Phys. 241:292, eqs. 8 and 13. Inter-particle volumes V = m / rho.
+J. Comput. Phys. 241:292, eqs. 8 and 13. Inter-particle volumes V = m / rho. Pair vectors are
+component-major (dim, N, K), see `sph.pairs`.
 """
 import jax.numpy as jnp
+
+from .pairs import cdot
 
 
 def _volume_weight(pairs, rho, mass):
@@ -23,15 +26,15 @@ def acceleration(pairs, rho, p, u, v, mass, eta, tvf: bool):
     c = _volume_weight(pairs, rho, mass)
     rho_j, p_j = pairs.gather(rho), pairs.gather(p)
     p_ij = (rho_j * p[:, None] + rho[:, None] * p_j) / (rho[:, None] + rho_j)
-    u_ij = u[:, None, :] - pairs.gather(u)
-    term = -p_ij[..., None] * pairs.dr + eta * u_ij
+    u_ij = pairs.own_vec(u) - pairs.gather_vec(u)
+    term = -p_ij * pairs.dr + eta * u_ij
     if tvf:
         # A . r_ij with A = rho u (x) (v - u): rho u ((v - u) . r_ij), averaged over i and j
         ru, w = rho[:, None] * u, v - u
-        a_i = ru[:, None, :] * jnp.sum(w[:, None, :] * pairs.dr, axis=-1, keepdims=True)
-        a_j = pairs.gather(ru) * jnp.sum(pairs.gather(w) * pairs.dr, axis=-1, keepdims=True)
+        a_i = pairs.own_vec(ru) * cdot(pairs.own_vec(w), pairs.dr)
+        a_j = pairs.gather_vec(ru) * cdot(pairs.gather_vec(w), pairs.dr)
         term = term + 0.5 * (a_i + a_j)
-    return jnp.sum(c[..., None] * term, axis=1)
+    return pairs.sum_vec(c * term)
 
 
 def background_acceleration(pairs, rho, mass, p_b):
@@ -40,4 +43,4 @@ def background_acceleration(pairs, rho, mass, p_b):
     d(v - u)_i/dt = -(p_b / m_i) sum_j (V_i^2 + V_j^2) dW/dr e_ij.
     """
     c = _volume_weight(pairs, rho, mass)
-    return -p_b * jnp.sum(c[..., None] * pairs.dr, axis=1)
+    return -p_b * pairs.sum_vec(c * pairs.dr)

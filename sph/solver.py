@@ -36,6 +36,9 @@ class Solver:
 
     init_fn() -> (state, nbrs)
     step_fn(state, nbrs, step) -> (state, nbrs)     `step` is the number of the step being taken
+    state_at(r, u, nbrs) -> state                   traceable: the state init_fn builds at positions
+                                                    `r`, velocities `u`, with a given neighbour list
+    pairs_fn(r, nbrs) -> Pairs                      the pair geometry the step uses
     """
 
     scene: Scene
@@ -47,9 +50,10 @@ class Solver:
     p_b: float
     dtype: object
     neighbors: NeighborSearch
-    displacement: Callable
     init_fn: Callable
     step_fn: Callable
+    state_at: Callable
+    pairs_fn: Callable
 
     def n_steps(self, t_end: float) -> int:
         return int(round(t_end / self.dt))
@@ -79,13 +83,13 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     dt = numerics.dt if numerics.dt is not None else limits["dt"]
     skin = numerics.skin_factor * scene.dx
     nsearch = make_neighbor_search(scene.domain, kernel.cutoff, skin, numerics.capacity_multiplier)
-    disp = scene.domain.make_displacement(kernel.cutoff + skin)
+    margin = kernel.cutoff + skin
     w0 = float(kernel.w(0.0))
     eta = mat.eta
     reinit = fx.density_reinit_every
 
     def pairs_of(r, nbrs):
-        return pair_geometry(r, nbrs.idx, disp, kernel)
+        return pair_geometry(r, nbrs.idx, scene.domain, margin, kernel)
 
     def evolve_density(pairs, rho, p, u, mass, step):
         if fx.riemann:
@@ -111,12 +115,9 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
             dvdt = jnp.zeros_like(dudt)
         return dudt, dvdt
 
-    def init_fn():
-        r = jnp.asarray(scene.r, dtype)
-        u = jnp.asarray(scene.u, dtype)
+    def state_at(r, u, nbrs):
         n = r.shape[0]
         mass = jnp.full((n,), mat.rho_ref * scene.dx**dim, dtype)
-        nbrs = nsearch.allocate(r)
         pairs = pairs_of(r, nbrs)
         if fx.density_evolution:
             rho = jnp.full((n,), mat.rho_ref, dtype)
@@ -124,9 +125,13 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
             rho = density.summation(pairs, mass, w0)
         p = eos.p(rho)
         dudt, dvdt = accelerations(pairs, rho, p, u, u, mass)
-        state = ParticleState(r=r, u=u, v=u, rho=rho, p=p, mass=mass,
-                              tag=jnp.asarray(scene.tag, jnp.int32), dudt=dudt, dvdt=dvdt)
-        return state, nbrs
+        return ParticleState(r=r, u=u, v=u, rho=rho, p=p, mass=mass,
+                             tag=jnp.asarray(scene.tag, jnp.int32), dudt=dudt, dvdt=dvdt)
+
+    def init_fn():
+        r = jnp.asarray(scene.r, dtype)
+        nbrs = nsearch.allocate(r)
+        return state_at(r, jnp.asarray(scene.u, dtype), nbrs), nbrs
 
     def step_fn(state: ParticleState, nbrs, step):
         u = state.u + dt * state.dudt
@@ -143,4 +148,5 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
         return state.replace(r=r, u=u, v=v, rho=rho, p=p, dudt=dudt, dvdt=dvdt), nbrs
 
     return Solver(scene=scene, numerics=numerics, kernel=kernel, eos=eos, dt=float(dt), dt_limits=limits,
-                  p_b=p_b, dtype=dtype, neighbors=nsearch, displacement=disp, init_fn=init_fn, step_fn=step_fn)
+                  p_b=p_b, dtype=dtype, neighbors=nsearch, init_fn=init_fn, step_fn=step_fn, state_at=state_at,
+                  pairs_fn=pairs_of)

@@ -55,8 +55,8 @@ def periodic_pairs(r, dx, kernel_name="quintic", h_factor=1.0, domain=UNIT_SQUAR
     """
     kernel = make_kernel(kernel_name, h_factor * dx, domain.dim)
     idx = brute_force_neighbors(r, kernel.cutoff, domain.box, domain.periodic)
-    disp = domain.make_displacement(kernel.cutoff)
-    pairs = jax.jit(lambda r, idx: pair_geometry(r, idx, disp, kernel))(jnp.asarray(r, jnp.float64), idx)
+    pairs = jax.jit(lambda r, idx: pair_geometry(r, idx, domain, kernel.cutoff, kernel))(
+        jnp.asarray(r, jnp.float64), idx)
     return kernel, pairs
 
 

@@ -14,10 +14,8 @@ import numpy as np
 import pytest
 
 import sph
-from sph import density, momentum, riemann
 from sph.cases import tgv
 from sph.lattice import cartesian, jitter
-from sph.pairs import pair_geometry
 from sph.rollout import scan_rollout
 from sph_test_helpers import kinetic_energy
 
@@ -33,30 +31,10 @@ EFFECTS = {
 
 
 def state_from_positions(solver, template, nbrs, r):
-    """The state `init_fn` would build at positions `r` (velocities, masses from `template`),
-    traceable in `r`: density by summation (or rho_ref with density evolution), EoS, forces.
+    """The state `init_fn` builds at positions `r` (wrapped into the box), traceable in `r`;
     `nbrs` must be a list valid at `r` (the caller checks overflow)."""
-    with jax.ensure_compile_time_eval():  # W(0) is a constant, also while `r` is traced
-        w0 = float(solver.kernel.w(0.0))
-    fx, mat = solver.scene.effects, solver.scene.material
     r = jnp.mod(r, jnp.asarray(solver.scene.domain.box))
-    pairs = pair_geometry(r, nbrs.idx, solver.displacement, solver.kernel)
-    u, mass = template.u, template.mass
-    if fx.density_evolution:
-        rho = jnp.full_like(template.rho, mat.rho_ref)
-    else:
-        rho = density.summation(pairs, mass, w0)
-    p = solver.eos.p(rho)
-    if fx.riemann:
-        dudt = riemann.acceleration(pairs, rho, p, u, mass, mat.eta, solver.eos.c_ref,
-                                    solver.numerics.eta_limiter)
-    else:
-        dudt = momentum.acceleration(pairs, rho, p, u, u, mass, mat.eta, fx.tvf)
-    if fx.tvf:
-        dvdt = momentum.background_acceleration(pairs, rho, mass, solver.p_b)
-    else:
-        dvdt = jnp.zeros_like(dudt)
-    return template.replace(r=r, v=u, rho=rho, p=p, dudt=dudt, dvdt=dvdt)
+    return solver.state_at(r, template.u, nbrs)
 
 
 @pytest.mark.parametrize("name", list(EFFECTS))

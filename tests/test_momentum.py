@@ -142,7 +142,7 @@ def test_background_acceleration_vanishes_on_lattice_and_restores_displaced_part
     _, pairs = periodic_pairs(r, dx)
     a_b = bg(pairs, rho, mass, p_b)
     # scale of a single pair contribution: p_b V^2/m |dW/dr| ~ p_b / (rho dx) * O(1)
-    scale = float(jnp.max(jnp.sum(jnp.abs((2 * (dx**2) ** 2 / dx**2 * pairs.f)[..., None] * pairs.dr), axis=1)))
+    scale = float(jnp.max(jnp.sum(jnp.abs((2 * (dx**2) ** 2 / dx**2 * pairs.f) * pairs.dr), axis=-1)))
     assert float(jnp.max(jnp.abs(a_b))) < 1e-12 * p_b * scale
 
     i = 210  # an interior lattice site (any site is interior in a periodic box)
