@@ -4,7 +4,9 @@ One HDF5 file holds one group per trajectory ("00000", "00001", ...). A trajecto
 
   position       (T, N, dim)  particle positions per frame          (what LagrangeBench reads)
   particle_type  (N,)         particle tag (0 = fluid, as in LagrangeBench)
-  velocity       (T, N, dim)  momentum velocity u                    } kept fields, optional
+  velocity       (T, N, dim)  transport velocity v (the particles' }
+                              own velocity; = u without TVF)         } kept fields, optional
+  momentum_velocity (T, N, dim) momentum velocity u                  }
   density        (T, N)       density                                }
   pressure       (T, N)       pressure                               }
   time, step     (T,)         simulated time and step number of each frame
@@ -27,7 +29,7 @@ import numpy as np
 
 from .state import ParticleState
 
-FIELDS = {"position": "r", "velocity": "u", "density": "rho", "pressure": "p"}
+FIELDS = {"position": "r", "velocity": "v", "momentum_velocity": "u", "density": "rho", "pressure": "p"}
 """Per-particle trajectory datasets and the ParticleState field each one stores."""
 
 SERIES = ("time", "step", "u_max", "e_kin", "density_error")
@@ -66,7 +68,7 @@ class TrajectoryWriter:
         n = ptype.shape[0]
         g.create_dataset("particle_type", data=ptype)
         for name in ("position", *keep):
-            shape = (n, dim) if name in ("position", "velocity") else (n,)
+            shape = (n, dim) if name in ("position", "velocity", "momentum_velocity") else (n,)
             g.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(1, *shape), dtype=dtype)
         for name in SERIES:
             g.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(256,),

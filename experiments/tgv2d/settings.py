@@ -12,7 +12,7 @@ from sph.configtools import ConfigError, from_mapping, load_yaml, merge, require
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 CONFIG = HERE / "config.yaml"
-KEEPABLE = ("velocity", "density", "pressure")
+KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class Experiment:
     numerics: sph.Numerics = field(default_factory=sph.Numerics)
     frames: int = 200
     eval_times: tuple[float, ...] = (0.5, 1.0, 2.0)
-    keep: tuple[str, ...] = KEEPABLE
+    keep: tuple[str, ...] = ("velocity", "density", "pressure")
     connectivity_radius_factor: float = 1.45
     relaxation: Relaxation = field(default_factory=Relaxation)
     fig4_method: str = "tvf"
