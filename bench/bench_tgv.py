@@ -37,7 +37,7 @@ def measure(dx, dtype, method, steps):
     out = compiled(state, nbrs, 0, steps)  # warm-up run (caches, allocator)
     jax.block_until_ready(out)
     best = np.inf
-    for _ in range(3):
+    for _ in range(5):
         t0 = time.perf_counter()
         out = compiled(state, nbrs, 0, steps)
         jax.block_until_ready(out)
@@ -55,7 +55,7 @@ def main():
     args = ap.parse_args()
     dxs = [0.02] if args.quick else [0.02, 0.01]
     dtypes = ["float64"] if args.quick else ["float64", "float32"]
-    print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {args.steps} steps per timing (best of 3)")
+    print(f"jax {jax.__version__} on {jax.devices()[0].platform}, {args.steps} steps per timing (best of 5)")
     print(f"{'method':8s} {'dx':>5s} {'dtype':8s} {'N':>6s} {'K':>3s} {'compile s':>9s} {'ms/step':>8s} {'Mpart-steps/s':>13s}")
     for dx in dxs:
         for dtype in dtypes:
