@@ -66,13 +66,13 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     h = numerics.h_factor * scene.dx
     kernel = make_kernel(numerics.kernel, h, dim)
     c_ref = numerics.c_ref_factor * mat.u_ref
+    p_ref = mat.rho_ref * c_ref**2 / (1.0 if fx.riemann else numerics.gamma)
+    p_bg = numerics.p_bg_factor * p_ref
     if fx.riemann:
-        eos = RiemannEoS(mat.rho_ref, c_ref)
-        eos = RiemannEoS(mat.rho_ref, c_ref, p_bg=numerics.p_bg_factor * eos.p_ref)
+        eos = RiemannEoS(mat.rho_ref, c_ref, p_bg=p_bg)
     else:
-        eos = TaitEoS(mat.rho_ref, c_ref, numerics.gamma)
-        eos = TaitEoS(mat.rho_ref, c_ref, numerics.gamma, p_bg=numerics.p_bg_factor * eos.p_ref)
-    p_b = numerics.p_b_factor * eos.p_ref
+        eos = TaitEoS(mat.rho_ref, c_ref, numerics.gamma, p_bg=p_bg)
+    p_b = numerics.p_b_factor * p_ref
     gravity = None
     if fx.gravity is not None:
         if len(fx.gravity) != dim:
