@@ -4,8 +4,6 @@ Adami, Hu & Adams (2013), "A transport-velocity formulation for smoothed particl
 J. Comput. Phys. 241:292, eqs. 8 and 13. Inter-particle volumes V = m / rho. Pair vectors are
 component-major (dim, N, K), see `sph.pairs`.
 """
-import jax.numpy as jnp
-
 from .pairs import cdot
 
 

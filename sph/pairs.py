@@ -23,7 +23,6 @@ class Pairs:
     dr   (dim, N, K) r_i - r_j (minimum image; arbitrary but finite in padded slots)
     d    (N, K) |r_ij| (beyond the kernel support in padded slots)
     w    (N, K) W(|r_ij|)
-    dw   (N, K) dW/dr(|r_ij|)
     f    (N, K) dW/dr / |r_ij|, the scalar factor of most SPH pair terms
     """
 
@@ -32,7 +31,6 @@ class Pairs:
     dr: jax.Array
     d: jax.Array
     w: jax.Array
-    dw: jax.Array
     f: jax.Array
 
     def gather(self, x):
@@ -90,4 +88,4 @@ def pair_geometry(r, idx, domain, margin, kernel) -> Pairs:
     far = 2.0 * kernel.cutoff
     d = jnp.sqrt(jnp.where(mask, cdot(dr, dr), far * far))
     dw = kernel.dwdr(d)
-    return Pairs(j=j, mask=mask, dr=dr, d=d, w=kernel.w(d), dw=dw, f=dw / d)
+    return Pairs(j=j, mask=mask, dr=dr, d=d, w=kernel.w(d), f=dw / d)
