@@ -6,6 +6,8 @@ from .configtools import require
 from .kernels import KERNELS
 from .precision import DTYPES
 
+WALL_MODES = (None, "no_slip", "free_slip")
+
 
 @dataclass(frozen=True)
 class Material:
@@ -14,16 +16,22 @@ class Material:
     rho_ref  reference density
     eta      dynamic viscosity eta = rho nu
     u_ref    reference (maximum expected) velocity; sets the artificial sound speed c_ref
+    kappa    thermal conductivity (needed by effects.heat)
+    c_p      specific heat capacity (needed by effects.heat)
     """
 
     rho_ref: float = 1.0
     eta: float = 0.01
     u_ref: float = 1.0
+    kappa: Optional[float] = None
+    c_p: Optional[float] = None
 
     def __post_init__(self):
         require(self.rho_ref > 0, "material.rho_ref", f"must be positive, got {self.rho_ref}")
         require(self.eta >= 0, "material.eta", f"must be >= 0, got {self.eta}")
         require(self.u_ref > 0, "material.u_ref", f"must be positive, got {self.u_ref}")
+        require(self.kappa is None or self.kappa > 0, "material.kappa", f"must be positive, got {self.kappa}")
+        require(self.c_p is None or self.c_p > 0, "material.c_p", f"must be positive, got {self.c_p}")
 
 
 @dataclass(frozen=True)
@@ -34,7 +42,13 @@ class Effects:
     riemann               Riemann SPH with dissipation limiter (Zhang 2017b); needs density_evolution
     density_evolution     continuity equation instead of density summation
     density_reinit_every  Shepard density re-initialization every N steps (0 = off); needs evolution
-    gravity               constant body force vector, or null for none
+    gravity               constant body force vector, or null for none (a scene may instead carry a
+                          space-dependent `body_force`, see sph.forces)
+    walls                 generalized wall boundary condition (Adami 2012; one-sided Riemann walls
+                          with Riemann SPH): "no_slip" or "free_slip", null = no walls
+    artificial_viscosity  alpha of Monaghan's artificial viscosity (0 = off), for free-surface flows
+    heat                  thermal diffusion (Cleary 1998); needs material.kappa, material.c_p and an
+                          initial temperature in the scene
     """
 
     tvf: bool = False
@@ -42,13 +56,20 @@ class Effects:
     density_evolution: bool = False
     density_reinit_every: int = 0
     gravity: Optional[tuple[float, ...]] = None
+    walls: Optional[str] = None
+    heat: bool = False
+    artificial_viscosity: float = 0.0
 
     def __post_init__(self):
+        require(self.walls in WALL_MODES, "effects.walls",
+                f"{self.walls!r} is not one of {WALL_MODES} (null = no walls)")
         require(not (self.riemann and not self.density_evolution), "effects.riemann",
                 "Riemann SPH evolves density with the Riemann velocity (Zhang 2017b, eq. 8): "
                 "set effects.density_evolution: true")
         require(not (self.riemann and self.tvf), "effects.tvf",
                 "the transport-velocity formulation is not combined with Riemann SPH here; choose one")
+        require(self.artificial_viscosity >= 0, "effects.artificial_viscosity",
+                f"must be >= 0, got {self.artificial_viscosity}")
         require(self.density_reinit_every >= 0, "effects.density_reinit_every",
                 f"must be >= 0, got {self.density_reinit_every}")
         require(not (self.density_reinit_every and not self.density_evolution),
@@ -62,6 +83,12 @@ class Effects:
             out.append(f"density_reinit_every={self.density_reinit_every}")
         if self.gravity is not None:
             out.append("gravity")
+        if self.walls is not None:
+            out.append(f"walls={self.walls}")
+        if self.heat:
+            out.append("heat")
+        if self.artificial_viscosity:
+            out.append(f"artificial_viscosity={self.artificial_viscosity}")
         return out
 
 

@@ -18,3 +18,23 @@ def jitter(r, std, seed, box=None) -> np.ndarray:
     if box is not None:
         out = np.mod(out, np.asarray(box, dtype=float))
     return out
+
+
+def wall_layers(lo, hi, dx, layers: int, open_sides=()):
+    """Wall particles framing the fluid box [lo, hi): `layers` cell-centred layers on every side
+    except those in `open_sides` (entries (axis, 0) for the low side, (axis, 1) for the high side).
+
+    Returns positions (M, dim) and unit normals (M, dim) pointing from each wall particle to the
+    nearest point of the fluid box (diagonal at corners), as Riemann and free-slip walls need.
+    """
+    lo, hi = np.atleast_1d(lo).astype(float), np.atleast_1d(hi).astype(float)
+    pad = layers * dx
+    r = cartesian(lo - pad, hi + pad, dx)
+    outside = np.any((r < lo) | (r > hi), axis=1)
+    for axis, side in open_sides:
+        beyond = r[:, axis] > hi[axis] if side else r[:, axis] < lo[axis]
+        outside &= ~beyond
+    r = r[outside]
+    to_fluid = np.clip(r, lo, hi) - r
+    normal = to_fluid / np.linalg.norm(to_fluid, axis=1, keepdims=True)
+    return r, normal

@@ -42,3 +42,14 @@ def background_acceleration(pairs, rho, mass, p_b):
     """
     c = _volume_weight(pairs, rho, mass)
     return -p_b * pairs.sum_vec(c * pairs.dr)
+
+
+def artificial_viscosity(pairs, rho, u, mass, alpha: float, h: float, c_ref: float):
+    """Monaghan (1992) artificial viscosity, as used for free-surface flows (Adami 2012, Sec. 4.3):
+    du_i/dt = -sum_j m_j Pi_ij grad_i W_ij,  Pi_ij = -alpha h c_ref (u_ij . r_ij) / (rho_avg (r_ij^2 + 0.01 h^2)),
+    applied to every pair (no approach switch, as in JAX-SPH), u = the viscous-term velocity.
+    """
+    u_ij = pairs.own_vec(u) - pairs.gather_vec(u)
+    rho_avg = 0.5 * (rho[:, None] + pairs.gather(rho))
+    pi = -alpha * h * c_ref * cdot(u_ij, pairs.dr) / (rho_avg * (pairs.d**2 + 0.01 * h * h))
+    return pairs.sum_vec(-(pairs.gather(mass) * pi * pairs.f) * pairs.dr)

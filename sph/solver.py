@@ -7,8 +7,13 @@ Time integration (one neighbour pass per step), semi-implicit (symplectic) Euler
   rho^{n+1}: summation at r^{n+1}, or rho^n + dt Drho/Dt(r^{n+1}, u^{n+1}) (continuity / Riemann),
              optionally re-initialized every N steps
   p^{n+1} = EoS(rho^{n+1});  a^{n+1}, a_b^{n+1} from the momentum equation at r^{n+1}.
+  walls (Adami 2012): after the density, wall particles take p, rho and the viscous velocity u~
+             from their fluid neighbours (`sph.walls`); walls keep their positions and velocity.
+  heat (Cleary 1998): T^{n+1} = T^n + dt dT/dt(r^{n+1}, rho^{n+1}, T^n) on free (non-Dirichlet) fluid
+             particles; non-Dirichlet wall particles take the Shepard-extrapolated fluid temperature.
 Only the declared effects are traced into the step: a scene without TVF carries no TVF terms, one
-without gravity adds no body force, one with summation density never evaluates the continuity sum.
+without gravity adds no body force, one with summation density never evaluates the continuity sum,
+one without walls has no wall pass, one without heat has no temperature field (state.T is None).
 """
 from dataclasses import dataclass
 from typing import Callable
@@ -17,10 +22,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import density, momentum, riemann
+from . import density, heat, momentum, riemann, walls
 from .config import Numerics
 from .configtools import ConfigError
 from .eos import RiemannEoS, TaitEoS
+from .forces import ConstantForce
 from .kernels import make_kernel
 from .neighbors import NeighborSearch, make_neighbor_search
 from .pairs import pair_geometry
@@ -73,13 +79,14 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     else:
         eos = TaitEoS(mat.rho_ref, c_ref, numerics.gamma, p_bg=p_bg)
     p_b = numerics.p_b_factor * p_ref
-    gravity = None
+    force = scene.body_force
     if fx.gravity is not None:
         if len(fx.gravity) != dim:
             raise ConfigError(f"effects.gravity: has {len(fx.gravity)} components but the scene is {dim}D")
-        gravity = np.asarray(fx.gravity, dtype=float)
-    g_max = float(np.linalg.norm(gravity)) if gravity is not None else 0.0
-    limits = time_step(h, c_ref, mat.u_ref, mat.eta, mat.rho_ref, g_max, numerics.cfl)
+        force = ConstantForce(tuple(float(g) for g in fx.gravity))
+    g_max = force.g_max if force is not None else 0.0
+    diffusivity = mat.kappa / (mat.rho_ref * mat.c_p) if fx.heat else 0.0
+    limits = time_step(h, c_ref, mat.u_ref, mat.eta, mat.rho_ref, g_max, numerics.cfl, diffusivity)
     dt = numerics.dt if numerics.dt is not None else limits["dt"]
     skin = numerics.skin_factor * scene.dx
     nsearch = make_neighbor_search(scene.domain, kernel.cutoff, skin, numerics.capacity_multiplier)
@@ -87,13 +94,17 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     w0 = float(kernel.w(0.0))
     eta = mat.eta
     reinit = fx.density_reinit_every
+    has_walls = fx.walls is not None
+    fluid_np, wall_np = scene.fluid_mask, scene.wall_mask
+    normal_np = scene.normal if scene.normal is not None else np.zeros_like(scene.r)
+    t_fixed_np = scene.T_fixed if scene.T_fixed is not None else np.zeros(scene.n, bool)
 
     def pairs_of(r, nbrs):
         return pair_geometry(r, nbrs.idx, scene.domain, margin, kernel)
 
-    def evolve_density(pairs, rho, p, u, mass, step):
+    def evolve_density(pairs, rho, p, u, mass, step, wall_pairs):
         if fx.riemann:
-            drhodt = riemann.continuity(pairs, rho, p, u, mass, c_ref)
+            drhodt = riemann.continuity(pairs, rho, p, u, mass, c_ref, walls=wall_pairs, rho_of_p=eos.rho)
         else:
             drhodt = density.continuity(pairs, rho, mass, u)
         rho = rho + dt * drhodt
@@ -102,18 +113,62 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
                                lambda x: density.reinitialize(pairs, x, mass, w0), lambda x: x, rho)
         return rho
 
-    def accelerations(pairs, rho, p, u, v, mass):
+    def body_force_at(r):
+        return force(r) if force is not None else jnp.zeros_like(r)
+
+    def riemann_walls(pairs, r, rho):
+        if not (has_walls and fx.riemann):
+            return None
+        return riemann.wall_pairs(pairs, jnp.asarray(wall_np), jnp.asarray(normal_np, dtype), rho, body_force_at(r))
+
+    def boundary(pairs, r, rho, p, u, v, T):
+        """Generalized wall condition: wall p, rho, viscous velocity u~ (and T) from the fluid.
+        Returns rho, p, u_visc (u with u~ on walls), v_stress (v with u~ on walls, so A_w = 0), T."""
+        if not has_walls:
+            return rho, p, u, v, T
+        wall = jnp.asarray(wall_np)
+        fw = walls.fluid_weights(pairs, jnp.asarray(fluid_np, dtype))
+        p = jnp.where(wall, walls.pressure(pairs, fw, p, rho, body_force_at(r)), p)
+        rho = jnp.where(wall, eos.rho(p), rho)
+        u_hat = walls.extrapolate_vec(pairs, fw, u)
+        normal = jnp.asarray(normal_np, dtype) if fx.walls == "free_slip" else None
+        u_visc = jnp.where(wall[:, None], walls.velocity(u_hat, u, normal), u)
+        v_stress = jnp.where(wall[:, None], u_visc, v)
+        if T is not None:
+            T = jnp.where(wall & ~jnp.asarray(t_fixed_np), walls.extrapolate(pairs, fw, T), T)
+        return rho, p, u_visc, v_stress, T
+
+    def accelerations(pairs, r, rho, p, u, u_visc, v_stress, mass, wall_pairs):
         if fx.riemann:
-            dudt = riemann.acceleration(pairs, rho, p, u, mass, eta, c_ref, numerics.eta_limiter)
+            dudt = riemann.acceleration(pairs, rho, p, u, mass, eta, c_ref, numerics.eta_limiter,
+                                        u_visc=u_visc if has_walls else None, walls=wall_pairs,
+                                        rho_of_p=eos.rho)
         else:
-            dudt = momentum.acceleration(pairs, rho, p, u, v, mass, eta, fx.tvf)
-        if gravity is not None:
-            dudt = dudt + jnp.asarray(gravity, dtype)
+            dudt = momentum.acceleration(pairs, rho, p, u_visc, v_stress, mass, eta, fx.tvf)
+        if force is not None:
+            dudt = dudt + force(r)
+        if fx.artificial_viscosity:
+            dudt = dudt + momentum.artificial_viscosity(pairs, rho, u_visc, mass, fx.artificial_viscosity, h, c_ref)
         if fx.tvf:
             dvdt = momentum.background_acceleration(pairs, rho, mass, p_b)
         else:
             dvdt = jnp.zeros_like(dudt)
+        if has_walls:
+            fluid = jnp.asarray(fluid_np)[:, None]
+            dudt, dvdt = jnp.where(fluid, dudt, 0.0), jnp.where(fluid, dvdt, 0.0)
         return dudt, dvdt
+
+    def heat_update(pairs, r, rho, T, mass):
+        free = jnp.asarray(fluid_np & ~t_fixed_np)
+        rate = heat.temperature_rate(pairs, rho, T, mass, mat.kappa, mat.c_p)
+        for zone in scene.T_zones:
+            if zone.T is None:
+                rate = jnp.where(zone.inside(r), 0.0, rate)
+        T = T + dt * jnp.where(free, rate, 0.0)
+        for zone in scene.T_zones:
+            if zone.T is not None:
+                T = jnp.where(free & zone.inside(r), zone.T, T)
+        return T
 
     def state_at(r, u, nbrs):
         n = r.shape[0]
@@ -123,10 +178,12 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
             rho = jnp.full((n,), mat.rho_ref, dtype)
         else:
             rho = density.summation(pairs, mass, w0)
-        p = eos.p(rho)
-        dudt, dvdt = accelerations(pairs, rho, p, u, u, mass)
-        return ParticleState(r=r, u=u, v=u, rho=rho, p=p, mass=mass,
-                             tag=jnp.asarray(scene.tag, jnp.int32), dudt=dudt, dvdt=dvdt)
+        T = jnp.asarray(np.nan_to_num(scene.T), dtype) if fx.heat else None
+        v = jnp.where(jnp.asarray(fluid_np)[:, None], u, 0.0) if has_walls else u
+        rho, p, u_visc, v_stress, T = boundary(pairs, r, rho, eos.p(rho), u, v, T)
+        dudt, dvdt = accelerations(pairs, r, rho, p, u, u_visc, v_stress, mass, riemann_walls(pairs, r, rho))
+        return ParticleState(r=r, u=u, v=v, rho=rho, p=p, mass=mass,
+                             tag=jnp.asarray(scene.tag, jnp.int32), dudt=dudt, dvdt=dvdt, T=T)
 
     def init_fn():
         r = jnp.asarray(scene.r, dtype)
@@ -136,16 +193,20 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     def step_fn(state: ParticleState, nbrs, step):
         u = state.u + dt * state.dudt
         v = u + (0.5 * dt) * state.dvdt if fx.tvf else u
+        if has_walls:
+            v = jnp.where(jnp.asarray(fluid_np)[:, None], v, 0.0)  # walls keep their positions
         r = scene.domain.shift(state.r, dt * v)
         nbrs = nsearch.update(r, nbrs)
         pairs = pairs_of(r, nbrs)
         if fx.density_evolution:
-            rho = evolve_density(pairs, state.rho, state.p, u, state.mass, step)
+            rho = evolve_density(pairs, state.rho, state.p, u, state.mass, step, riemann_walls(pairs, r, state.rho))
         else:
             rho = density.summation(pairs, state.mass, w0)
-        p = eos.p(rho)
-        dudt, dvdt = accelerations(pairs, rho, p, u, v, state.mass)
-        return state.replace(r=r, u=u, v=v, rho=rho, p=p, dudt=dudt, dvdt=dvdt), nbrs
+        rho, p, u_visc, v_stress, T = boundary(pairs, r, rho, eos.p(rho), u, v, state.T)
+        dudt, dvdt = accelerations(pairs, r, rho, p, u, u_visc, v_stress, state.mass, riemann_walls(pairs, r, rho))
+        if fx.heat:
+            T = heat_update(pairs, r, rho, T, state.mass)
+        return state.replace(r=r, u=u, v=v, rho=rho, p=p, dudt=dudt, dvdt=dvdt, T=T), nbrs
 
     return Solver(scene=scene, numerics=numerics, kernel=kernel, eos=eos, dt=float(dt), dt_limits=limits,
                   p_b=p_b, dtype=dtype, neighbors=nsearch, init_fn=init_fn, step_fn=step_fn, state_at=state_at,

@@ -1,0 +1,33 @@
+"""Water in a closed rectangular tank under gravity: the dam break (Colagrossi & Landrini 2003;
+Martin & Moyce 1952) and the hydrostatic tank at rest.
+
+Tank interior [0, L_tank] x [0, H_tank] (shifted by `layers * dx` into the scene box), water column
+[0, width] x [0, height] against the left wall, gravity g in -y. u_ref = sqrt(2 g height), the
+largest free-fall speed of the column.
+"""
+import numpy as np
+
+from ..config import Effects, Material
+from ..domain import Domain
+from ..lattice import cartesian, wall_layers
+from ..scene import Scene
+from ..state import FLUID, WALL
+
+
+def scene(dx: float, material: Material, effects: Effects, width: float, height: float, tank_length: float,
+          tank_height: float, layers: int = 3, name: str = "tank") -> Scene:
+    off = layers * dx
+    fluid = cartesian([off, off], [off + width, off + height], dx)
+    lo, hi = np.array([off, off]), np.array([off + tank_length, off + tank_height])
+    wall, normal = wall_layers(lo, hi, dx, layers)
+    r = np.concatenate([fluid, wall])
+    tag = np.concatenate([np.full(len(fluid), FLUID), np.full(len(wall), WALL)]).astype(np.int32)
+    nrm = np.concatenate([np.zeros_like(fluid), normal])
+    box = (tank_length + 2 * off, tank_height + 2 * off)
+    return Scene(name=name, dx=dx, domain=Domain(box=box, periodic=(False, False)), material=material,
+                 effects=effects, r=r, u=np.zeros_like(r), tag=tag, normal=nrm)
+
+
+def u_ref(g: float, height: float) -> float:
+    """Reference speed sqrt(2 g H) of a column of height H."""
+    return float(np.sqrt(2.0 * g * height))
