@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import sph
-from sph import density, momentum, riemann
-from sph.cases import tgv
+from sph import density, heat, momentum, riemann, walls
+from sph.cases import tank, tgv
 
 DX = 0.05
 MAT = sph.Material(eta=0.01)
@@ -23,7 +23,40 @@ PHYSICS = {
     "momentum.background_acceleration": (momentum, "background_acceleration"),
     "riemann.continuity": (riemann, "continuity"),
     "riemann.acceleration": (riemann, "acceleration"),
+    "momentum.artificial_viscosity": (momentum, "artificial_viscosity"),
+    "walls.pressure": (walls, "pressure"),
+    "walls.extrapolate_vec": (walls, "extrapolate_vec"),
+    "walls.extrapolate": (walls, "extrapolate"),
+    "heat.temperature_rate": (heat, "temperature_rate"),
 }
+WALL_PASS = {"walls.pressure", "walls.extrapolate_vec"}
+HOT = sph.Material(eta=0.01, kappa=0.1, c_p=1.0)
+SCENES = {  # name -> (scene factory, physics the step must call, has temperature)
+    "tank": (lambda: tank.scene(0.1, MAT, sph.Effects(walls="no_slip", gravity=(0.0, -1.0), density_evolution=True),
+                                width=0.5, height=0.5, tank_length=1.0, tank_height=1.0),
+             {"density.continuity", "momentum.acceleration"} | WALL_PASS, False),
+    "tank_riemann": (lambda: tank.scene(0.1, MAT, sph.Effects(walls="no_slip", gravity=(0.0, -1.0), riemann=True,
+                                                              density_evolution=True),
+                                        width=0.5, height=0.5, tank_length=1.0, tank_height=1.0),
+                     {"riemann.continuity", "riemann.acceleration"} | WALL_PASS, False),
+    "tank_artificial_viscosity": (
+        lambda: tank.scene(0.1, MAT, sph.Effects(walls="no_slip", density_evolution=True, artificial_viscosity=0.1),
+                           width=0.5, height=0.5, tank_length=1.0, tank_height=1.0),
+        {"density.continuity", "momentum.acceleration", "momentum.artificial_viscosity"} | WALL_PASS, False),
+    "tank_heat": (lambda: _with_temperature(tank.scene(0.1, MAT, sph.Effects(walls="no_slip"), width=0.5, height=0.5,
+                                                       tank_length=1.0, tank_height=1.0)),
+                  {"density.summation", "momentum.acceleration", "walls.extrapolate", "heat.temperature_rate"}
+                  | WALL_PASS, True),
+    "tgv_heat": (lambda: _with_temperature(tgv.scene(DX, MAT, sph.Effects())),
+                 {"density.summation", "momentum.acceleration", "heat.temperature_rate"}, True),
+}
+
+
+def _with_temperature(scene):
+    """The same scene with heat declared: conductivity, a temperature field, Dirichlet walls."""
+    import dataclasses
+    return dataclasses.replace(scene, material=HOT, effects=dataclasses.replace(scene.effects, heat=True),
+                               T=1.0 + scene.r[:, 0], T_fixed=scene.wall_mask)
 CASES = {
     "none": (sph.Effects(), {"density.summation", "momentum.acceleration"}),
     "tvf": (sph.Effects(tvf=True),
@@ -129,3 +162,26 @@ def test_gravity_is_added_to_the_acceleration(state_and_list):
     np.testing.assert_array_equal(np.asarray(s_g.r), np.asarray(s_0.r))
     np.testing.assert_allclose(np.asarray(s_g.dudt - s_0.dudt), np.broadcast_to(np.array(g), s_0.dudt.shape),
                                rtol=0, atol=1e-12 * float(jnp.max(jnp.abs(s_0.dudt))))
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_wall_and_heat_passes_only_when_declared(name, recorder):
+    """Walls, heat and artificial viscosity are traced into the step exactly when declared; the
+    temperature field exists exactly when heat is declared (no field, no heat work otherwise)."""
+    make, expected, has_T = SCENES[name]
+    solver = sph.build_solver(make())
+    state, nbrs = solver.init_fn()
+    recorder.clear()
+    jax.make_jaxpr(solver.step_fn)(state, nbrs, 1)
+    called = {n for n, _, _ in recorder}
+    assert called == expected, f"{name}: step called {sorted(called)}, expected {sorted(expected)}"
+    assert (state.T is not None) is has_T
+    assert ("thermal" in solver.dt_limits) is has_T
+
+
+def test_scene_without_walls_or_heat_has_no_such_work(recorder, state_and_list):
+    state, nbrs = state_and_list
+    jax.make_jaxpr(_solver(sph.Effects()).step_fn)(state, nbrs, 1)
+    called = {n for n, _, _ in recorder}
+    assert not called & (WALL_PASS | {"walls.extrapolate", "heat.temperature_rate"})
+    assert state.T is None and "T" not in state.field_names()
