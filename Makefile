@@ -33,6 +33,7 @@ test: $(VENV) .venv-lb/.stamp
 
 bench: $(VENV)
 	$(PY) bench/bench_tgv.py
+	$(PY) bench/bench_effects.py
 
 include $(wildcard experiments/*/rules.mk)
 
