@@ -49,11 +49,17 @@ def advance(chunk, neighbors, state, nbrs, step0: int, n: int, max_reallocations
     return state, nbrs, reallocs
 
 
-def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0):
-    """Plain differentiable rollout of `n_steps` (static) with `lax.scan`.
+def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0, segments: int = 0):
+    """Differentiable rollout of `n_steps` (static) with `lax.scan`.
 
     Returns (state, nbrs, overflowed). Use `jax.grad` through it; if `overflowed` is true the result
     is invalid and the caller must re-allocate `nbrs` and redo the rollout.
+
+    `segments` > 0 turns on gradient checkpointing: the steps are split into that many segments of
+    ceil(n_steps / segments) steps, each wrapped in `jax.checkpoint`, so the backward pass stores one
+    carry per segment and recomputes the steps inside a segment. With segments ~ sqrt(n_steps) the
+    memory of the gradient grows like sqrt(n_steps) instead of n_steps, for one extra forward pass.
+    The result is the same computation, so gradients agree with the plain rollout to round-off.
     """
 
     def body(carry, k):
@@ -61,5 +67,17 @@ def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0):
         state, nbrs = step_fn(state, nbrs, step0 + k + 1)
         return (state, nbrs, overflow | nbrs.did_buffer_overflow.astype(bool)), None
 
-    (state, nbrs, overflow), _ = jax.lax.scan(body, (state, nbrs, jnp.zeros((), bool)), jnp.arange(n_steps))
-    return state, nbrs, overflow
+    def run(carry, ks):
+        return jax.lax.scan(body, carry, ks)[0], None
+
+    carry = (state, nbrs, jnp.zeros((), bool))
+    if segments <= 0 or segments >= n_steps:
+        carry, _ = run(carry, jnp.arange(n_steps))
+        return carry
+    seg = -(-n_steps // segments)
+    full = n_steps // seg
+    run_ckpt = jax.checkpoint(run)
+    carry, _ = jax.lax.scan(run_ckpt, carry, jnp.arange(full * seg).reshape(full, seg))
+    if full * seg < n_steps:
+        carry, _ = run_ckpt(carry, jnp.arange(full * seg, n_steps))
+    return carry
