@@ -5,9 +5,12 @@ full key path (e.g. ``numerics.cfl``), and recurses into nested config dataclass
 their own value checks in ``__post_init__`` by raising ``ConfigError`` via ``require``.
 """
 import dataclasses
+import hashlib
+import json
 import types
 import typing
 from pathlib import Path
+from typing import Optional
 
 import yaml
 
@@ -139,3 +142,48 @@ def to_mapping(cfg) -> dict:
             return [conv(v) for v in x]
         return x
     return conv(cfg)
+
+
+def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
+    """Build `cls` from profile `profile` of a YAML file with a single top-level key `profiles`.
+
+    A profile may say `inherit: <other>` to be merged key by key over that profile (lists are
+    replaced); `overrides` (a mapping) is merged last. Errors name the key path, e.g.
+    ``profiles.smoke.dx[0]``.
+    """
+    data = load_yaml(path)
+    unknown = sorted(set(data) - {"profiles"})
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
+    raw = _resolve_profile(data.get("profiles") or {}, profile, ())
+    return from_mapping(cls, merge(raw, overrides or {}), f"profiles.{profile}")
+
+
+def _resolve_profile(profiles: dict, name: str, seen: tuple) -> dict:
+    if name not in profiles:
+        raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
+    if name in seen:
+        raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
+    own = dict(profiles[name] or {})
+    parent = own.pop("inherit", None)
+    if parent is None:
+        return own
+    if not isinstance(parent, str):
+        raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
+    return merge(_resolve_profile(profiles, parent, seen + (name,)), own)
+
+
+def digest(obj) -> str:
+    """Short stable hash of a JSON-able object (configs via `to_mapping`), for run fingerprints."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def source_hash(root, files) -> str:
+    """Short hash of the solver sources (`root`/sph/**/*.py) and the given extra files, so that a
+    cached result is reused only while the code that made it is unchanged."""
+    root = Path(root)
+    h = hashlib.sha256()
+    for p in sorted((root / "sph").rglob("*.py")) + [Path(f) for f in files]:
+        h.update(str(Path(p).resolve().relative_to(root.resolve())).encode())
+        h.update(Path(p).read_bytes())
+    return h.hexdigest()[:16]
