@@ -1,0 +1,129 @@
+"""Fig. 8: dam break, non-dimensional pressure p/(rho g H) of the particles of the 2:1 column at the
+paper's time stamps (one panel each, fixed colour range), and a validation figure with the
+downstream-wall pressure history against Buchner (2002) and the square column's surge front and
+back-wall height against Martin & Moyce (1952).
+
+Reads results/<profile>/dambreak2d/*/traj.h5, series.csv and metrics.csv (evaluate.py); writes
+results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy).
+
+    python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+import sph  # noqa: E402
+from sph import io  # noqa: E402
+from experiments.dambreak2d import evaluate as E  # noqa: E402
+from experiments.dambreak2d import settings as S  # noqa: E402
+
+
+def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
+    column = exp.column(exp.pressure_column)
+    tr = io.read_trajectory(S.run_dir(results, column.name, exp.dx) / "traj.h5")
+    t, pos, p = tr["time"], tr["position"], tr["pressure"]
+    fluid = tr["particle_type"] == sph.FLUID
+    off, scale = exp.offset, exp.fluid.rho_ref * exp.g * column.height
+    times = list(exp.snapshot_times)
+    ncol = 3 if len(times) > 4 else len(times)
+    nrow = -(-len(times) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 2.1 * nrow + 0.6), constrained_layout=True,
+                             squeeze=False)
+    lo, hi = exp.pressure_range
+    size = max(0.3, 1.6 * (exp.dx / 0.02) ** 2)
+    sc = None
+    for ax, ts in zip(axes.flat, times):
+        k = int(np.argmin(np.abs(t - ts)))
+        x, y = pos[k, :, 0] - off, pos[k, :, 1] - off
+        ax.scatter(x[~fluid], y[~fluid], s=size, c="0.6", marker="s", linewidths=0)
+        sc = ax.scatter(x[fluid], y[fluid], s=size, c=p[k, fluid] / scale, cmap="viridis", vmin=lo, vmax=hi,
+                        linewidths=0)
+        late = "" if abs(t[k] - ts) < 0.5 * exp.frame_dt + 1e-9 else f" (run ends at {t[-1]:.2f})"
+        ax.set_title(rf"$t\sqrt{{g/H}}$ = {t[k]:.2f}{late}", fontsize=10)
+        ax.set(xlim=(-exp.offset, exp.tank.length + exp.offset), ylim=(-exp.offset, exp.tank.height + exp.offset),
+               aspect="equal", xticks=[0, 1, 2, 3, 4, 5], yticks=[0, 1, 2])
+    for ax in list(axes.flat)[len(times):]:
+        ax.axis("off")
+    fig.colorbar(sc, ax=axes, shrink=0.8, label=r"$p/(\rho g H)$")
+    fig.suptitle(f"Dam break, Riemann SPH, dx = {exp.dx:g} H, {column.width:g} x {column.height:g} column, "
+                 f"{exp.effects.walls} walls")
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig8.{ext}", dpi=150)
+    plt.close(fig)
+    return out / "fig8.png"
+
+
+def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
+    metrics = pd.read_csv(S.metrics_path(results)).set_index("column")
+    fig, (ax_p, ax_f, ax_h) = plt.subplots(1, 3, figsize=(15.0, 4.0), constrained_layout=True)
+
+    col = exp.pressure_column
+    s = pd.read_csv(S.run_dir(results, col, exp.dx) / "series.csv")
+    t_ref, p_ref = E.load_ref(E.BUCHNER)
+    ax_p.plot(t_ref, p_ref, "ko", ms=3, label="Buchner (2002), experiment")
+    ax_p.plot(s["t"], s["p_sensor"], "-", color="tab:blue", lw=0.8, label=f"SPH, every frame (dx = {exp.dx:g})")
+    m = metrics.loc[col]
+    ax_p.plot([m["ref_p_peak_t"]], [m["ref_p_peak"]], "s", mfc="none", mec="k", ms=9, label="first peak, exp.")
+    ax_p.plot([m["p_peak_t"]], [m["p_peak"]], "s", mfc="none", mec="tab:blue", ms=9, label="first peak, SPH")
+    ax_p.set(xlabel=r"$t\sqrt{g/H}$", ylabel=r"$p/(\rho g H)$",
+             title=f"downstream wall, y = {exp.sensor_height:g} H ({exp.column(col).width:g}:1 column)",
+             xlim=(0, max(s["t"].iloc[-1], t_ref[-1])))
+    ax_p.legend(fontsize=8)
+
+    col = exp.front_column
+    s = pd.read_csv(S.run_dir(results, col, exp.dx) / "series.csv")
+    tf, xf = E.load_ref(E.MM_FRONT)
+    th, yh = E.load_ref(E.MM_HEIGHT)
+    ax_f.plot(tf, xf, "ko", ms=4, label="Martin & Moyce (1952)")
+    ax_f.plot(s["t"], s["x_front"], color="tab:red", label=f"SPH (dx = {exp.dx:g})")
+    ax_f.axvline(exp.front_t_max, color="0.5", ls=":", lw=1)
+    ax_f.axhline(exp.tank.length / exp.column(col).height, color="0.5", ls="--", lw=1, label="right wall")
+    m = metrics.loc[col]
+    ax_f.set(xlabel=r"$t\sqrt{g/H}$", ylabel=r"$x_{front}/H$", xlim=(0, 3.5),
+             title=f"square column: surge front (max. rel. err. {m['front_relerr_max']:.1%} "
+                   rf"for $t\sqrt{{g/H}} \leq$ {exp.front_t_max:g})")
+    ax_f.legend(fontsize=8)
+    ax_h.plot(th, yh, "ko", ms=4, label="Martin & Moyce (1952)")
+    ax_h.plot(s["t"], s["h_back"], color="tab:red", label=f"SPH (dx = {exp.dx:g})")
+    ax_h.set(xlabel=r"$t\sqrt{g/H}$", ylabel=r"$h(x=0)/H$", xlim=(0, max(s["t"].iloc[-1], 0.5)),
+             title="square column: height at the back wall")
+    ax_h.legend(fontsize=8)
+    for ax in (ax_p, ax_f, ax_h):
+        ax.grid(True, alpha=0.3)
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"validation.{ext}", dpi=150)
+    plt.close(fig)
+    return out / "validation.png"
+
+
+def plot(exp: "S.Experiment", results) -> Path:
+    out = Path(results) / "fig8"
+    out.mkdir(parents=True, exist_ok=True)
+    f8 = plot_fig8(exp, results, out)
+    val = plot_validation(exp, results, out)
+    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
+    print(f"fig8 -> {f8}, {val}, {out / 'metrics.csv'}")
+    return f8
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()

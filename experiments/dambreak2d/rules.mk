@@ -1,0 +1,27 @@
+# 2D dam break, paper Fig. 8 (experiments/dambreak2d/README.md).
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# The runs (one stamp for all columns) depend on the config, settings.py, run.py and the core; run.py
+# itself skips runs whose outputs already match their inputs and resumes interrupted ones. The
+# metrics depend on the runs, evaluate.py and the reference data; the figures on the metrics and
+# their plot script, so editing evaluate.py only re-evaluates and editing the plot script only re-plots.
+DB2D         := experiments/dambreak2d
+DB2D_RUNS    := $(RESULTS)/dambreak2d/runs.done
+DB2D_METRICS := $(RESULTS)/dambreak2d/metrics.csv
+DB2D_REFS    := $(wildcard validation_refs/dambreak_*.csv)
+FIG8_OUT     := $(addprefix $(RESULTS)/fig8/,fig8.png fig8.pdf validation.png validation.pdf metrics.csv)
+
+.PHONY: fig8 dambreak2d
+
+$(DB2D_RUNS): $(DB2D)/config.yaml $(DB2D)/settings.py $(DB2D)/run.py $(CORE) | $(VENV)
+	$(PY) $(DB2D)/run.py --profile $(PROFILE) --results $(RESULTS)
+	@touch $@
+
+$(DB2D_METRICS): $(DB2D_RUNS) $(DB2D)/evaluate.py $(DB2D_REFS)
+	$(PY) $(DB2D)/evaluate.py --profile $(PROFILE) --results $(RESULTS)
+
+# the runs and their metrics only
+dambreak2d: $(DB2D_METRICS)
+
+fig8: $(FIG8_OUT)
+$(FIG8_OUT) &: $(DB2D_METRICS) $(DB2D)/plot_fig8.py
+	$(PY) $(DB2D)/plot_fig8.py --profile $(PROFILE) --results $(RESULTS)

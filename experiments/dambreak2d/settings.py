@@ -1,0 +1,201 @@
+"""Settings of the 2D dam-break experiment: config.yaml -> frozen, validated dataclasses, paths, and
+the fingerprints that decide whether a cached result still matches its inputs."""
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import sph
+from sph.configtools import ConfigError, from_mapping, load_yaml, merge, require, to_mapping
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+CONFIG = HERE / "config.yaml"
+REFS = ROOT / "validation_refs"
+KEEPABLE = ("velocity", "density", "pressure")
+
+
+@dataclass(frozen=True)
+class Tank:
+    """Closed rectangular tank: interior [0, length] x [0, height], `layers` wall layers per side."""
+
+    length: float = 5.366
+    height: float = 2.0
+    layers: int = 3
+
+    def __post_init__(self):
+        require(self.length > 0, "tank.length", f"must be positive, got {self.length}")
+        require(self.height > 0, "tank.height", f"must be positive, got {self.height}")
+        require(self.layers >= 1, "tank.layers", f"must be >= 1, got {self.layers}")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One water column against the left wall: width x height, run to t_end (simulation time; with
+    g = H = 1 this is t sqrt(g/H))."""
+
+    name: str
+    width: float
+    height: float
+    t_end: float
+
+    def __post_init__(self):
+        require(self.width > 0, "width", f"must be positive, got {self.width}")
+        require(self.height > 0, "height", f"must be positive, got {self.height}")
+        require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
+
+
+@dataclass(frozen=True)
+class Fluid:
+    """Water: reference density and dynamic viscosity. u_ref = sqrt(2 g H) follows from the column."""
+
+    rho_ref: float = 1.0
+    eta: float = 5.0e-5
+
+    def __post_init__(self):
+        require(self.rho_ref > 0, "fluid.rho_ref", f"must be positive, got {self.rho_ref}")
+        require(self.eta >= 0, "fluid.eta", f"must be >= 0, got {self.eta}")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One profile of the experiment (see config.yaml for the meaning of each key)."""
+
+    columns: tuple[Column, ...]
+    dx: float
+    case: str = "dambreak2d"
+    tank: Tank = field(default_factory=Tank)
+    fluid: Fluid = field(default_factory=Fluid)
+    effects: sph.Effects = field(default_factory=sph.Effects)
+    numerics: sph.Numerics = field(default_factory=sph.Numerics)
+    hydrostatic_init: bool = True
+    frame_dt: float = 0.02
+    keep: tuple[str, ...] = ("density", "pressure")
+    pressure_column: str = "tall"
+    front_column: str = "square"
+    sensor_height: float = 0.2
+    wet_threshold: float = 0.1
+    height_band: float = 0.1
+    front_t_max: float = 2.5
+    peak_threshold: float = 0.1
+    peak_window: float = 1.0
+    smooth_window: float = 0.1
+    snapshot_times: tuple[float, ...] = (1.62, 2.38, 4.0, 5.21, 6.02, 7.23)
+    pressure_range: tuple[float, ...] = (0.0, 1.0)
+    connectivity_radius_factor: float = 1.45
+
+    def __post_init__(self):
+        require(len(self.columns) > 0, "columns", "needs at least one column")
+        names = [c.name for c in self.columns]
+        for i, n in enumerate(names):
+            require(names.index(n) == i, f"columns[{i}].name", f"{n!r} appears twice")
+        for i, c in enumerate(self.columns):
+            require(c.width < self.tank.length and c.height < self.tank.height, f"columns[{i}]",
+                    f"{c.width} x {c.height} does not fit into the tank {self.tank.length} x {self.tank.height}")
+            for key, size in (("width", c.width), ("height", c.height)):
+                n = size / self.dx
+                require(abs(n - round(n)) < 1e-6, f"columns[{i}].{key}",
+                        f"{size} is not a whole number of particle spacings dx = {self.dx}")
+        require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
+        fx = self.effects
+        require(fx.gravity is not None and len(fx.gravity) == 2 and fx.gravity[0] == 0 and fx.gravity[1] < 0,
+                "effects.gravity", f"the dam break needs gravity [0, -g] with g > 0, got {fx.gravity}")
+        require(fx.walls is not None, "effects.walls", "the tank needs walls: no_slip or free_slip")
+        require(self.frame_dt > 0, "frame_dt", f"must be positive, got {self.frame_dt}")
+        for i, k in enumerate(self.keep):
+            require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+        require("pressure" in self.keep, "keep", "must contain 'pressure' (wall sensor and Fig. 8)")
+        require(self.pressure_column in names, "pressure_column", f"{self.pressure_column!r} is not one of {names}")
+        require(self.front_column in names, "front_column", f"{self.front_column!r} is not one of {names}")
+        require(0 < self.sensor_height < self.tank.height, "sensor_height",
+                f"must lie inside the tank height, got {self.sensor_height}")
+        require(self.wet_threshold > 0, "wet_threshold", f"must be positive, got {self.wet_threshold}")
+        require(self.height_band > 0, "height_band", f"must be positive, got {self.height_band}")
+        require(self.peak_window > 0, "peak_window", f"must be positive, got {self.peak_window}")
+        require(self.smooth_window >= 0, "smooth_window", f"must be >= 0, got {self.smooth_window}")
+        require(len(self.pressure_range) == 2, "pressure_range",
+                f"expected [min, max], got {list(self.pressure_range)}")
+        lo, hi = self.pressure_range
+        require(hi > lo, "pressure_range", f"needs min < max, got {list(self.pressure_range)}")
+
+    @property
+    def g(self) -> float:
+        return -float(self.effects.gravity[1])
+
+    def column(self, name: str) -> Column:
+        return next(c for c in self.columns if c.name == name)
+
+    def material(self, column: Column) -> sph.Material:
+        """rho_ref, eta and u_ref = sqrt(2 g H) of the column."""
+        return sph.Material(rho_ref=self.fluid.rho_ref, eta=self.fluid.eta,
+                            u_ref=math.sqrt(2.0 * self.g * column.height))
+
+    @property
+    def offset(self) -> float:
+        """Position of the tank's inner lower-left corner in the scene box (wall layers below/left)."""
+        return self.tank.layers * self.dx
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
+    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
+    data = load_yaml(path)
+    unknown = sorted(set(data) - {"profiles"})
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
+    profiles = data.get("profiles") or {}
+    raw = _resolve(profiles, profile, ())
+    return from_mapping(Experiment, merge(raw, overrides or {}), f"profiles.{profile}")
+
+
+def _resolve(profiles: dict, name: str, seen: tuple) -> dict:
+    if name not in profiles:
+        raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
+    if name in seen:
+        raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
+    own = dict(profiles[name] or {})
+    parent = own.pop("inherit", None)
+    if parent is None:
+        return own
+    if not isinstance(parent, str):
+        raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
+    return merge(_resolve(profiles, parent, seen + (name,)), own)
+
+
+# -- paths ----------------------------------------------------------------------------------------
+def out_dir(results) -> Path:
+    """results/<profile>/dambreak2d."""
+    return Path(results) / "dambreak2d"
+
+
+def run_dir(results, column: str, dx: float) -> Path:
+    return out_dir(results) / f"{column}_dx{dx:g}"
+
+
+def metrics_path(results) -> Path:
+    return out_dir(results) / "metrics.csv"
+
+
+# -- fingerprints ---------------------------------------------------------------------------------
+def code_hash(*scripts: str) -> str:
+    """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
+    h = hashlib.sha256()
+    files = sorted((ROOT / "sph").rglob("*.py")) + [HERE / n for n in ("settings.py", *scripts)]
+    for p in files:
+        h.update(str(p.relative_to(ROOT)).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def run_fingerprint(exp: Experiment, column: Column) -> str:
+    """What a trajectory depends on: the simulation settings and the code, not the evaluation keys
+    (sensor, bands, figure), so changing those only re-evaluates."""
+    return _digest({"case": exp.case, "dx": exp.dx, "column": to_mapping(column), "tank": to_mapping(exp.tank),
+                    "fluid": to_mapping(exp.fluid), "effects": to_mapping(exp.effects),
+                    "numerics": to_mapping(exp.numerics), "hydrostatic_init": exp.hydrostatic_init,
+                    "frame_dt": exp.frame_dt, "keep": list(exp.keep), "code": code_hash("run.py")})

@@ -1,0 +1,114 @@
+"""Fig. 10: non-dimensional temperature theta = (T - T_ref) / (T_hot - T_ref) of every particle (fluid
+and walls) of JAX-SPH's hot channel at the profile's `snapshot_times` (nearest written frame), on a
+fixed colour range [0, 1]; plus fig10_series: heated-wall Nusselt number, outlet and maximum fluid
+temperature and the bulk velocity against start-up Poiseuille flow over time.
+
+Reads results/<profile>/thermal/channel_dx<dx>/{frames.npz,series.csv} and channel_metrics.csv;
+writes results/<profile>/fig10/fig10.{png,pdf}, fig10_series.png, metrics.csv (the channel
+metrics row of this dx) and series.csv (a copy of the per-frame diagnostics).
+
+    python experiments/thermal/plot_fig10.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from sph.state import FLUID  # noqa: E402
+from experiments.thermal import settings as S  # noqa: E402
+
+CMAP = "inferno"
+
+
+def snapshot_indices(times, wanted) -> list:
+    """Index of the frame nearest to each wanted time."""
+    times = np.asarray(times)
+    return [int(np.argmin(np.abs(times - t))) for t in wanted]
+
+
+def periodic_copies(r, values, length: float, margin: float):
+    """Append copies of the particles within `margin` of x = 0 or x = length shifted by -+length, so
+    that the markers of a periodic channel cover both ends of the plot."""
+    left, right = r[:, 0] < margin, r[:, 0] > length - margin
+    shift = np.array([length, 0.0])
+    return (np.concatenate([r, r[left] + shift, r[right] - shift]),
+            np.concatenate([values, values[left], values[right]]))
+
+
+def plot(exp: "S.Experiment", results) -> Path:
+    c = exp.channel
+    folder = S.channel_dir(results, c.dx)
+    data = np.load(folder / "frames.npz")
+    series = pd.read_csv(folder / "series.csv")
+    out = Path(results) / "fig10"
+    out.mkdir(parents=True, exist_ok=True)
+    box = data["box"]
+    dT = c.T_hot - c.T_ref
+    idx = snapshot_indices(data["time"], c.snapshot_times)
+    width = 8.0
+    panel_h = width * 0.82 * box[1] / box[0]
+    fig, axes = plt.subplots(len(idx), 1, figsize=(width, 0.9 + len(idx) * (panel_h + 0.25)),
+                             constrained_layout=True, squeeze=False, sharex=True)
+    size = (1.2 * 0.82 * width * 72 * c.dx / box[0]) ** 2  # squares slightly over one spacing (points^2)
+    fluid = data["tag"] == FLUID
+    for ax, k in zip(axes[:, 0], idx):
+        r, theta = periodic_copies(data["r"][k], (data["T"][k] - c.T_ref) / dT, box[0], 2 * c.dx)
+        sc = ax.scatter(r[:, 0], r[:, 1], c=theta, s=size, marker="s", linewidths=0, cmap=CMAP, vmin=0.0, vmax=1.0)
+        rw = data["r"][k][~fluid]
+        ax.scatter(rw[:, 0], rw[:, 1], s=size * 0.08, c="w", marker=".", linewidths=0, alpha=0.5)
+        ax.set(xlim=(0, box[0]), ylim=(0, box[1]), aspect="equal", yticks=[])
+        ax.set_title(f"t = {data['time'][k]:.3g}", fontsize=9, loc="left", pad=2)
+    axes[-1, 0].set_xlabel("x")
+    fig.colorbar(sc, ax=axes[:, 0].tolist(), label=r"$\theta = (T - T_{ref})/(T_{hot} - T_{ref})$",
+                 shrink=0.8, aspect=30)
+    fig.suptitle(f"Hot channel (JAX-SPH Fig. 10): standard SPH + heat, dx = {c.dx:g}, {int(fluid.sum())} fluid "
+                 f"particles\nwalls dotted; heated bottom segment |x - {box[0] / 2:g}| < {c.hot_half_width:g} "
+                 f"at T_hot = {c.T_hot:g}, other walls at T_ref = {c.T_ref:g}", fontsize=9)
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig10.{ext}", dpi=150)
+    plt.close(fig)
+
+    t = series["time"]
+    fig, ax = plt.subplots(1, 3, figsize=(12.0, 3.4), constrained_layout=True)
+    ax[0].plot(t, series["Nu_hot"], "C3")
+    ax[0].set(xlabel="t", ylabel=r"$Nu_{hot} = \bar q_{hot} H / (\kappa \Delta T)$", title="heated-wall heat flux",
+              ylim=(0, None))
+    ax[1].plot(t, (series["T_fluid_max"] - c.T_ref) / dT, "C1", label=r"max $\theta$ (fluid)")
+    ax[1].plot(t, (series["T_fluid_mean"] - c.T_ref) / dT, "C2", label=r"mean $\theta$ (fluid)")
+    ax[1].plot(t, (series["T_outlet_bulk"] - c.T_ref) / dT, "C0", label=r"outlet $\theta$ (mixing cup)")
+    ax[1].set(xlabel="t", ylabel=r"$\theta$", ylim=(0, 1), title="temperatures")
+    ax[1].legend(fontsize=8)
+    ax[2].plot(t, series["u_bulk"], "C0", label="SPH, mean $u_x$")
+    ax[2].plot(t, series["u_bulk_exact"], "k--", label="start-up Poiseuille")
+    ax[2].set(xlabel="t", ylabel=r"$u_{bulk}$", title="bulk velocity")
+    ax[2].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.savefig(out / "fig10_series.png", dpi=150)
+    plt.close(fig)
+    table = pd.read_csv(S.out_dir(results) / "channel_metrics.csv")
+    table[np.isclose(table["dx"], c.dx)].to_csv(out / "metrics.csv", index=False)
+    series.to_csv(out / "series.csv", index=False)
+    print(f"fig10 -> {out / 'fig10.png'}, {out / 'fig10_series.png'}, {out / 'metrics.csv'}, {out / 'series.csv'}")
+    return out / "fig10.png"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,27 @@
+# Thermal studies (experiments/thermal/README.md): heat-operator validation and paper Fig. 10.
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# Each study has its own stamp, so `make fig10` never runs the convergence study and vice versa. The
+# runs depend on the config, settings/run scripts and the core; run.py itself skips runs whose
+# outputs already match their inputs. The figures depend on the runs and their plot script only.
+THERMAL       := experiments/thermal
+THERMAL_DEPS  := $(THERMAL)/config.yaml $(THERMAL)/settings.py $(THERMAL)/run.py $(CORE)
+THERMAL_SINE  := $(RESULTS)/thermal/sine.done
+THERMAL_CHAN  := $(RESULTS)/thermal/channel.done
+
+.PHONY: heat-validation fig10
+
+$(THERMAL_SINE): $(THERMAL_DEPS) | $(VENV)
+	$(PY) $(THERMAL)/run.py --task sine --profile $(PROFILE) --results $(RESULTS)
+	@touch $@
+
+$(THERMAL_CHAN): $(THERMAL_DEPS) | $(VENV)
+	$(PY) $(THERMAL)/run.py --task channel --profile $(PROFILE) --results $(RESULTS)
+	@touch $@
+
+heat-validation: $(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/metrics.csv
+$(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/heat_validation.pdf $(RESULTS)/heat_validation/metrics.csv &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py
+	$(PY) $(THERMAL)/plot_heat_validation.py --profile $(PROFILE) --results $(RESULTS)
+
+fig10: $(RESULTS)/fig10/fig10.png $(RESULTS)/fig10/fig10.pdf $(RESULTS)/fig10/metrics.csv
+$(RESULTS)/fig10/fig10.png $(RESULTS)/fig10/fig10.pdf $(RESULTS)/fig10/fig10_series.png $(RESULTS)/fig10/metrics.csv $(RESULTS)/fig10/series.csv &: $(THERMAL_CHAN) $(THERMAL)/plot_fig10.py
+	$(PY) $(THERMAL)/plot_fig10.py --profile $(PROFILE) --results $(RESULTS)
