@@ -144,19 +144,21 @@ def to_mapping(cfg) -> dict:
     return conv(cfg)
 
 
-def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
-    """Build `cls` from profile `profile` of a YAML file with a single top-level key `profiles`.
-
-    A profile may say `inherit: <other>` to be merged key by key over that profile (lists are
-    replaced); `overrides` (a mapping) is merged last. Errors name the key path, e.g.
-    ``profiles.smoke.dx[0]``.
-    """
+def profile_mapping(path, profile: str, overrides: Optional[dict] = None) -> dict:
+    """The merged mapping of profile `profile` of a YAML file with a single top-level key
+    `profiles`: a profile may say `inherit: <other>` to be merged key by key over that profile
+    (lists are replaced); `overrides` (a mapping) is merged last."""
     data = load_yaml(path)
     unknown = sorted(set(data) - {"profiles"})
     if unknown:
         raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
-    raw = _resolve_profile(data.get("profiles") or {}, profile, ())
-    return from_mapping(cls, merge(raw, overrides or {}), f"profiles.{profile}")
+    return merge(_resolve_profile(data.get("profiles") or {}, profile, ()), overrides or {})
+
+
+def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
+    """Build `cls` from profile `profile` of a YAML file (see `profile_mapping`). Errors name the
+    key path, e.g. ``profiles.smoke.dx[0]``."""
+    return from_mapping(cls, profile_mapping(path, profile, overrides), f"profiles.{profile}")
 
 
 def _resolve_profile(profiles: dict, name: str, seen: tuple) -> dict:

@@ -20,6 +20,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Rectangle  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -27,6 +28,13 @@ import sph  # noqa: E402
 from sph import io  # noqa: E402
 from experiments.dambreak2d import evaluate as E  # noqa: E402
 from experiments.dambreak2d import settings as S  # noqa: E402
+
+
+def _draw_tank(ax, exp: "S.Experiment"):
+    """The wall layers as grey bands around the tank interior [0, L] x [0, H_tank]."""
+    t, L, H = exp.offset, exp.tank.length, exp.tank.height
+    for xy, w, h in (((-t, -t), L + 2 * t, t), ((-t, H), L + 2 * t, t), ((-t, 0), t, H), ((L, 0), t, H)):
+        ax.add_patch(Rectangle(xy, w, h, facecolor="0.75", edgecolor="none"))
 
 
 def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
@@ -46,7 +54,7 @@ def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
     for ax, ts in zip(axes.flat, times):
         k = int(np.argmin(np.abs(t - ts)))
         x, y = pos[k, :, 0] - off, pos[k, :, 1] - off
-        ax.scatter(x[~fluid], y[~fluid], s=size, c="0.6", marker="s", linewidths=0)
+        _draw_tank(ax, exp)
         sc = ax.scatter(x[fluid], y[fluid], s=size, c=p[k, fluid] / scale, cmap="viridis", vmin=lo, vmax=hi,
                         linewidths=0)
         late = "" if abs(t[k] - ts) < 0.5 * exp.frame_dt + 1e-9 else f" (run ends at {t[-1]:.2f})"
@@ -72,13 +80,22 @@ def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
     s = pd.read_csv(S.run_dir(results, col, exp.dx) / "series.csv")
     t_ref, p_ref = E.load_ref(E.BUCHNER)
     ax_p.plot(t_ref, p_ref, "ko", ms=3, label="Buchner (2002), experiment")
-    ax_p.plot(s["t"], s["p_sensor"], "-", color="tab:blue", lw=0.8, label=f"SPH, every frame (dx = {exp.dx:g})")
+    ax_p.plot(s["t"], s["p_sensor"], "-", color="tab:blue", lw=0.6, alpha=0.6,
+              label=f"SPH, every frame (dx = {exp.dx:g})")
+    ax_p.plot(s["t"], s["p_sensor_smooth"], "-", color="tab:red", lw=1.5,
+              label=f"SPH, running mean over {exp.smooth_window:g}")
     m = metrics.loc[col]
     ax_p.plot([m["ref_p_peak_t"]], [m["ref_p_peak"]], "s", mfc="none", mec="k", ms=9, label="first peak, exp.")
     ax_p.plot([m["p_peak_t"]], [m["p_peak"]], "s", mfc="none", mec="tab:blue", ms=9, label="first peak, SPH")
+    ax_p.plot([m["p_peak_t_smooth"]], [m["p_peak_smooth"]], "s", mfc="none", mec="tab:red", ms=9,
+              label="first peak, SPH smoothed")
+    lo, hi = min(-0.5, s["p_sensor"].min()), max(2.0, s["p_sensor"].max())
+    clipped = lo < -1.0 or hi > 3.0
     ax_p.set(xlabel=r"$t\sqrt{g/H}$", ylabel=r"$p/(\rho g H)$",
-             title=f"downstream wall, y = {exp.sensor_height:g} H ({exp.column(col).width:g}:1 column)",
-             xlim=(0, max(s["t"].iloc[-1], t_ref[-1])))
+             title=f"downstream wall, y = {exp.sensor_height:g} H ({exp.column(col).width:g}:1 column)"
+                   + (f"\n(raw SPH spans [{s['p_sensor'].min():.2g}, {s['p_sensor'].max():.2g}], clipped)"
+                      if clipped else ""),
+             xlim=(0, max(s["t"].iloc[-1], t_ref[-1])), ylim=(max(lo, -1.0), min(hi, 3.0)))
     ax_p.legend(fontsize=8)
 
     col = exp.front_column

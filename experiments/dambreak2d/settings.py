@@ -1,14 +1,12 @@
 """Settings of the 2D dam-break experiment: config.yaml -> frozen, validated dataclasses, paths, and
 the fingerprints that decide whether a cached result still matches its inputs."""
-import hashlib
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import ConfigError, from_mapping, load_yaml, merge, require, to_mapping
+from sph.configtools import digest, load_profile, require, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -140,27 +138,7 @@ class Experiment:
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
     """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
-    data = load_yaml(path)
-    unknown = sorted(set(data) - {"profiles"})
-    if unknown:
-        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
-    profiles = data.get("profiles") or {}
-    raw = _resolve(profiles, profile, ())
-    return from_mapping(Experiment, merge(raw, overrides or {}), f"profiles.{profile}")
-
-
-def _resolve(profiles: dict, name: str, seen: tuple) -> dict:
-    if name not in profiles:
-        raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
-    if name in seen:
-        raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
-    own = dict(profiles[name] or {})
-    parent = own.pop("inherit", None)
-    if parent is None:
-        return own
-    if not isinstance(parent, str):
-        raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
-    return merge(_resolve(profiles, parent, seen + (name,)), own)
+    return load_profile(Experiment, path, profile, overrides)
 
 
 # -- paths ----------------------------------------------------------------------------------------
@@ -180,22 +158,13 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
     """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
-    h = hashlib.sha256()
-    files = sorted((ROOT / "sph").rglob("*.py")) + [HERE / n for n in ("settings.py", *scripts)]
-    for p in files:
-        h.update(str(p.relative_to(ROOT)).encode())
-        h.update(p.read_bytes())
-    return h.hexdigest()[:16]
-
-
-def _digest(obj) -> str:
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])
 
 
 def run_fingerprint(exp: Experiment, column: Column) -> str:
     """What a trajectory depends on: the simulation settings and the code, not the evaluation keys
     (sensor, bands, figure), so changing those only re-evaluates."""
-    return _digest({"case": exp.case, "dx": exp.dx, "column": to_mapping(column), "tank": to_mapping(exp.tank),
+    return digest({"case": exp.case, "dx": exp.dx, "column": to_mapping(column), "tank": to_mapping(exp.tank),
                     "fluid": to_mapping(exp.fluid), "effects": to_mapping(exp.effects),
                     "numerics": to_mapping(exp.numerics), "hydrostatic_init": exp.hydrostatic_init,
                     "frame_dt": exp.frame_dt, "keep": list(exp.keep), "code": code_hash("run.py")})

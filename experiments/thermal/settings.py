@@ -4,8 +4,6 @@ and the fingerprints that decide whether a cached run still matches its inputs.
 Two studies share the file: `diffusion` (the heat operator against the analytical decay of a
 sinusoidal temperature in a periodic box at rest) and `channel` (JAX-SPH's hot channel, Fig. 10).
 """
-import hashlib
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +12,7 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.configtools import ConfigError, from_mapping, load_yaml, merge, require, to_mapping
+from sph.configtools import digest, load_profile, require, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -149,26 +147,7 @@ class Experiment:
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
     """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
-    data = load_yaml(path)
-    unknown = sorted(set(data) - {"profiles"})
-    if unknown:
-        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
-    raw = _resolve(data.get("profiles") or {}, profile, ())
-    return from_mapping(Experiment, merge(raw, overrides or {}), f"profiles.{profile}")
-
-
-def _resolve(profiles: dict, name: str, seen: tuple) -> dict:
-    if name not in profiles:
-        raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
-    if name in seen:
-        raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
-    own = dict(profiles[name] or {})
-    parent = own.pop("inherit", None)
-    if parent is None:
-        return own
-    if not isinstance(parent, str):
-        raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
-    return merge(_resolve(profiles, parent, seen + (name,)), own)
+    return load_profile(Experiment, path, profile, overrides)
 
 
 # -- paths ----------------------------------------------------------------------------------------
@@ -196,22 +175,13 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of the solver sources (sph/**/*.py) and of this folder's settings.py and run.py."""
-    h = hashlib.sha256()
-    files = sorted((ROOT / "sph").rglob("*.py")) + [HERE / n for n in ("settings.py", "run.py")]
-    for p in files:
-        h.update(str(p.relative_to(ROOT)).encode())
-        h.update(p.read_bytes())
-    return h.hexdigest()[:16]
-
-
-def _digest(obj) -> str:
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return source_hash(ROOT, [HERE / n for n in ("settings.py", "run.py")])
 
 
 def sine_fingerprint(d: Diffusion, dx: float) -> str:
     cfg = {k: v for k, v in to_mapping(d).items() if k not in ("dx", "report_dx", "target_relerr")}
-    return _digest({"study": "sine", "dx": dx, "cfg": cfg, "code": code_hash()})
+    return digest({"study": "sine", "dx": dx, "cfg": cfg, "code": code_hash()})
 
 
 def channel_fingerprint(c: Channel) -> str:
-    return _digest({"study": "channel", "cfg": to_mapping(c), "code": code_hash()})
+    return digest({"study": "channel", "cfg": to_mapping(c), "code": code_hash()})

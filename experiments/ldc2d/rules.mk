@@ -1,0 +1,38 @@
+# 2D lid-driven cavity, paper Figs. 6-7 (experiments/ldc2d/README.md).
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# Each figure has its own runs (fig6: figures.fig6's dx, fig7: figures.fig7's), one stamp per figure.
+# The runs depend on the config, settings.py, run.py and the core, so editing any of these re-runs
+# run.py, which itself skips runs whose trajectories already match their inputs and resumes
+# interrupted ones (LDC2D_FLAGS=--ignore-code-changes: keep runs made with an older sph/ or run.py).
+# The figures depend on the runs, analysis.py and plot.py: editing those (or the
+# `analysis` settings) re-evaluates and re-plots without re-running.
+LDC2D     := experiments/ldc2d
+LDC2D_RUN := $(LDC2D)/config.yaml $(LDC2D)/settings.py $(LDC2D)/run.py $(CORE)
+
+.PHONY: fig6 fig7 fig6-runs fig7-runs
+
+# refuse to start a figure's runs while background.sh processes of that figure are still writing them
+ldc2d_no_background = @for f in $(RESULTS)/ldc2d/logs/*_$(1).pid; do \
+	  [ -f "$$f" ] && kill -0 "$$(cat $$f)" 2>/dev/null && { echo "ldc2d: $(1) runs are still going in the \
+	  background (pid $$(cat $$f), log $${f%.pid}.log); wait for them to finish"; exit 1; }; done; true
+
+$(RESULTS)/ldc2d/fig6_runs.done: $(LDC2D_RUN) | $(VENV)
+	$(call ldc2d_no_background,fig6)
+	$(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig6 $(LDC2D_FLAGS)
+	@touch $@
+
+$(RESULTS)/ldc2d/fig7_runs.done: $(LDC2D_RUN) | $(VENV)
+	$(call ldc2d_no_background,fig7)
+	$(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig7 $(LDC2D_FLAGS)
+	@touch $@
+
+fig6-runs: $(RESULTS)/ldc2d/fig6_runs.done
+fig7-runs: $(RESULTS)/ldc2d/fig7_runs.done
+
+fig6: $(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv
+$(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv &: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
+	$(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS)
+
+fig7: $(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv
+$(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv &: $(RESULTS)/ldc2d/fig7_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
+	$(PY) $(LDC2D)/plot.py --fig fig7 --profile $(PROFILE) --results $(RESULTS)

@@ -1,0 +1,188 @@
+"""Settings of the 2D lid-driven cavity experiment: config.yaml -> frozen, validated dataclasses,
+result paths, and the fingerprint that decides whether a stored run still matches its inputs.
+
+The fingerprint covers only what changes a simulation (the solver inputs of the profile, the core
+`sph/` and `run.py`), not the post-processing (`analysis` settings, `analysis.py`, plot scripts):
+editing those re-evaluates the stored runs without re-running them.
+"""
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import sph
+from sph.configtools import digest, from_mapping, load_profile, merge, require, source_hash, to_mapping
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+CONFIG = HERE / "config.yaml"
+KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
+FIGURES = ("fig6", "fig7")
+VELOCITIES = ("transport", "momentum")
+LID_CORNERS = ("moving", "fixed")
+WALL_MODES = ("fluid", "mirror")
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named solver variant: the effects its scene declares (`effects.walls` defaults to no-slip)
+    and optional overrides of the profile's numerics (e.g. `{p_bg_factor: 0.01}` for standard SPH)."""
+
+    name: str
+    effects: dict = field(default_factory=dict)
+    numerics: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """How the centreline profiles are taken from the particles (post-processing only).
+
+    average_frames  profiles are averaged over this many frames at the end of the run (t_end included)
+    velocity        'transport' (v, the particles' velocity; = u without TVF) or 'momentum' (u)
+    walls           'fluid': Shepard interpolation over fluid particles only; 'mirror': the wall
+                    particles also contribute, with the no-slip velocity of the generalized wall
+                    condition (Adami 2012, 2 u_wall - Shepard average of the fluid around the wall
+                    particle), i.e. the velocity the solver itself gives the walls in the viscous term
+    n_points        points per centreline for the plotted curves (the metrics use Ghia's 17 points)
+    steady_window   steadiness check: relative change of E_kin over the last `steady_window` time
+                    units, and the profile change between the last two averaging windows
+    """
+
+    average_frames: int = 20
+    velocity: str = "transport"
+    walls: str = "mirror"
+    n_points: int = 101
+    steady_window: float = 5.0
+
+    def __post_init__(self):
+        require(self.average_frames >= 1, "analysis.average_frames", f"must be >= 1, got {self.average_frames}")
+        require(self.velocity in VELOCITIES, "analysis.velocity", f"{self.velocity!r} is not one of {list(VELOCITIES)}")
+        require(self.walls in WALL_MODES, "analysis.walls", f"{self.walls!r} is not one of {list(WALL_MODES)}")
+        require(self.n_points >= 2, "analysis.n_points", f"must be >= 2, got {self.n_points}")
+        require(self.steady_window > 0, "analysis.steady_window", f"must be positive, got {self.steady_window}")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One profile of the experiment (see config.yaml for the meaning of each key)."""
+
+    methods: tuple[Method, ...]
+    figures: dict
+    t_end: float
+    case: str = "ldc2d"
+    material: sph.Material = field(default_factory=sph.Material)
+    numerics: sph.Numerics = field(default_factory=sph.Numerics)
+    lid_velocity: float = 1.0
+    wall_layers: int = 3
+    lid_corners: str = "fixed"
+    frames: int = 200
+    keep: tuple[str, ...] = ("velocity", "momentum_velocity", "density")
+    connectivity_radius_factor: float = 1.45
+    analysis: Analysis = field(default_factory=Analysis)
+    ghia_re: int = 100
+
+    def __post_init__(self):
+        require(len(self.methods) > 0, "methods", "needs at least one method")
+        names = [m.name for m in self.methods]
+        for i, n in enumerate(names):
+            require(names.index(n) == i, f"methods[{i}].name", f"{n!r} appears twice")
+        for i, m in enumerate(self.methods):
+            fx = self.effects(m, where=f"methods[{i}]")
+            require(fx.walls == "no_slip", f"methods[{i}].effects.walls",
+                    f"the cavity walls are no-slip; got {fx.walls!r}")
+            self.numerics_of(m, where=f"methods[{i}]")
+        unknown = sorted(set(self.figures) - set(FIGURES))
+        require(not unknown, f"figures.{unknown[0] if unknown else ''}", f"unknown figure (known: {list(FIGURES)})")
+        require(len(self.figures) > 0, "figures", f"needs at least one of {list(FIGURES)} with its dx")
+        for name, dx in self.figures.items():
+            require(isinstance(dx, (int, float)) and not isinstance(dx, bool), f"figures.{name}",
+                    f"expected a particle spacing, got {dx!r}")
+            require(dx > 0 and abs(1.0 / dx - round(1.0 / dx)) < 1e-6, f"figures.{name}",
+                    f"must divide the unit cavity into whole cells (1/dx integer), got {dx}")
+        require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
+        require(self.frames >= 1, "frames", f"must be >= 1, got {self.frames}")
+        require(self.lid_velocity > 0, "lid_velocity", f"must be positive, got {self.lid_velocity}")
+        require(self.lid_velocity <= self.material.u_ref, "lid_velocity",
+                f"must not exceed material.u_ref ({self.material.u_ref}), which sets the sound speed")
+        require(self.wall_layers >= 1, "wall_layers", f"must be >= 1, got {self.wall_layers}")
+        require(self.lid_corners in LID_CORNERS, "lid_corners",
+                f"{self.lid_corners!r} is not one of {list(LID_CORNERS)}")
+        for i, k in enumerate(self.keep):
+            require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+        for k in ("velocity", "density"):
+            require(k in self.keep, "keep", f"the profiles need {k!r} in keep")
+        if self.analysis.velocity == "momentum":
+            require("momentum_velocity" in self.keep, "analysis.velocity",
+                    "'momentum' needs 'momentum_velocity' in keep")
+        require(self.analysis.average_frames <= self.frames + 1, "analysis.average_frames",
+                f"must not exceed the number of frames ({self.frames} + 1)")
+        require(self.ghia_re in (100, 400, 1000, 3200, 5000, 7500, 10000), "ghia_re",
+                f"not a Reynolds number of Ghia's tables, got {self.ghia_re}")
+        require(abs(self.re - self.ghia_re) <= 1e-9 * self.ghia_re, "material.eta",
+                f"Re = rho_ref lid_velocity / eta = {self.re:g} differs from ghia_re = {self.ghia_re}: the "
+                f"profiles would be compared with the wrong table")
+
+    @property
+    def re(self) -> float:
+        """Reynolds number rho U_lid L / eta with L = 1."""
+        return self.material.rho_ref * self.lid_velocity / self.material.eta
+
+    @property
+    def dx(self) -> tuple[float, ...]:
+        """The spacings of the figures, coarsest first (each run once)."""
+        return tuple(sorted({float(v) for v in self.figures.values()}, reverse=True))
+
+    def method(self, name: str) -> Method:
+        return next(m for m in self.methods if m.name == name)
+
+    def effects(self, m: Method, where: str = "") -> sph.Effects:
+        return from_mapping(sph.Effects, merge({"walls": "no_slip"}, m.effects), f"{where or m.name}.effects")
+
+    def numerics_of(self, m: Method, where: str = "") -> sph.Numerics:
+        return from_mapping(sph.Numerics, merge(to_mapping(self.numerics), m.numerics), f"{where or m.name}.numerics")
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
+    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
+    return load_profile(Experiment, path, profile, overrides)
+
+
+# -- paths ----------------------------------------------------------------------------------------
+def dx_tag(dx: float) -> str:
+    return f"dx{dx:g}"
+
+
+def out_dir(results) -> Path:
+    """results/<profile>/ldc2d."""
+    return Path(results) / "ldc2d"
+
+
+def run_dir(results, method: str, dx: float) -> Path:
+    return out_dir(results) / f"{method}_{dx_tag(dx)}"
+
+
+def metrics_path(results) -> Path:
+    return out_dir(results) / "metrics.csv"
+
+
+def profiles_path(results, method: str, dx: float) -> Path:
+    return run_dir(results, method, dx) / "profiles.npz"
+
+
+# -- fingerprints ---------------------------------------------------------------------------------
+def code_hash() -> str:
+    """Hash of the solver sources (sph/**/*.py) and run.py: the code that makes a trajectory."""
+    return source_hash(ROOT, [HERE / "run.py"])
+
+
+def settings_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
+    """Digest of the solver inputs of one run (no code)."""
+    return digest({"case": exp.case, "dx": dx, "method": method.name,
+                    "effects": to_mapping(exp.effects(method)), "numerics": to_mapping(exp.numerics_of(method)),
+                    "material": to_mapping(exp.material), "lid_velocity": exp.lid_velocity,
+                    "wall_layers": exp.wall_layers, "lid_corners": exp.lid_corners, "t_end": exp.t_end, "frames": exp.frames,
+                    "keep": list(exp.keep)})
+
+
+def run_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
+    """Digest of the solver inputs and the code (sph/, run.py) of one run."""
+    return digest({"settings": settings_fingerprint(exp, method, dx), "code": code_hash()})
