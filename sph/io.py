@@ -9,6 +9,7 @@ One HDF5 file holds one group per trajectory ("00000", "00001", ...). A trajecto
   momentum_velocity (T, N, dim) momentum velocity u                  }
   density        (T, N)       density                                }
   pressure       (T, N)       pressure                               }
+  temperature    (T, N)       temperature (scenes that declare heat) }
   time, step     (T,)         simulated time and step number of each frame
   u_max, e_kin, density_error (T,)  frame diagnostics (sph.diagnostics)
   checkpoint/                 every field of the last written ParticleState (attrs: step, t, ...)
@@ -29,7 +30,8 @@ import numpy as np
 
 from .state import ParticleState
 
-FIELDS = {"position": "r", "velocity": "v", "momentum_velocity": "u", "density": "rho", "pressure": "p"}
+FIELDS = {"position": "r", "velocity": "v", "momentum_velocity": "u", "density": "rho", "pressure": "p",
+          "temperature": "T"}
 """Per-particle trajectory datasets and the ParticleState field each one stores."""
 
 SERIES = ("time", "step", "u_max", "e_kin", "density_error")
@@ -56,7 +58,8 @@ class TrajectoryWriter:
     def create(cls, path, particle_type, dim: int, dtype=np.float64, keep: Sequence[str] = DEFAULT_KEEP,
                traj: str = "00000", attrs: Optional[dict] = None) -> "TrajectoryWriter":
         """New file at `path` (parents created, an old file replaced) with an empty trajectory.
-        `keep`: which of velocity/density/pressure to store besides position; `attrs`: group attrs."""
+        `keep`: which of velocity/momentum_velocity/density/pressure/temperature to store besides
+        position; `attrs`: group attrs."""
         unknown = [k for k in keep if k not in FIELDS or k == "position"]
         if unknown:
             raise ValueError(f"keep: {unknown[0]!r} is not one of {sorted(set(FIELDS) - {'position'})}")
@@ -117,9 +120,13 @@ class TrajectoryWriter:
         """Append one frame: kept per-particle fields of `state`, time, step and diagnostics."""
         i = self.n_frames
         for name in self.kept:
+            value = getattr(state, FIELDS[name])
+            if value is None:
+                raise ValueError(f"{self.path}: keeps {name!r}, but the state has no {FIELDS[name]} "
+                                 f"(its scene does not declare the effect that makes it)")
             ds = self.group[name]
             ds.resize(i + 1, axis=0)
-            ds[i] = np.asarray(getattr(state, FIELDS[name]))
+            ds[i] = np.asarray(value)
         diag = diag or {}
         values = {"time": t, "step": step, **{k: diag.get(k, np.nan) for k in SERIES[2:]}}
         for name in SERIES:
