@@ -8,16 +8,20 @@ RESULTS := results/$(PROFILE)
 CORE    := $(shell find sph -name '*.py' 2>/dev/null)
 export PYTHONPATH := $(CURDIR)
 
-.PHONY: setup setup-lb test bench fig4 fig5 fig6 fig7 fig8 fig10 stability clean help
+.PHONY: setup setup-lb test bench fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig10 stability clean help
 .DEFAULT_GOAL := help
 
 help:
+	@echo "make fig1 [PROFILE=smoke]       gradient check: AD vs finite differences, TGV and cavity (paper Fig. 1)"
+	@echo "make grad-growth                gradient norm against rollout length (1 ... 1000 steps)"
+	@echo "make fig2 [PROFILE=smoke]       inverse problem: recover initial positions (paper Fig. 2)"
 	@echo "make fig4 fig5 [PROFILE=smoke]  2D Taylor-Green vortex (paper Figs. 4-5)"
 	@echo "make fig6 fig7 [PROFILE=smoke]  lid-driven cavity vs Ghia et al. 1982 (dx 0.02 / 0.01)"
 	@echo "make fig8 [PROFILE=smoke]       Riemann-SPH dam break vs Buchner 2002, Martin & Moyce 1952"
-	@echo "make fig10 [PROFILE=smoke]      heated channel; heat operator vs analytical decay"
+	@echo "make fig10 [PROFILE=smoke]      heated channel (paper Fig. 10) + heat-validation"
+	@echo "make heat-validation            heat operator vs the analytical decay of a sine, dx 0.05-0.01"
 	@echo "make stability [PROFILE=smoke]  matrix of hard cases -> results/<profile>/stability/"
-	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects"
+	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make test                       test suite"
 	@echo "make setup / setup-lb           core environment / LagrangeBench environment"
 

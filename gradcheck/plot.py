@@ -1,0 +1,157 @@
+"""Fig. 1 (gradient check) and the gradient norm against rollout length.
+
+fig1: one row per case; the particles at the start of the checked window coloured by the magnitude
+of their gradient |dE_kin/dr_i| from automatic differentiation (float64) and from central finite
+differences (one column per entry of `fig1_dtypes`), walls in grey; on the right the eps sweep:
+relative L2 error of the central difference against grad . d over random unit directions d, for
+every case and precision, with the eps^2 (truncation) and 1/eps (round-off) slopes.
+Reads results/<profile>/gradcheck/{<case>_<dtype>.npz, metrics.csv, sweep.csv}; writes
+results/<profile>/fig1/{fig1.png, fig1.pdf, metrics.csv, sweep.csv}.
+
+growth: |dE_kin(n)/dr0| and E_kin(n) against the number of steps n, and the AD-vs-FD check along one
+direction. Reads grad_growth.csv; writes results/<profile>/fig1/{grad_norm_vs_steps.png, .csv}.
+
+    python gradcheck/plot.py --profile smoke [--results results/smoke] [--what fig1|growth]
+"""
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from sph.state import FLUID  # noqa: E402
+from gradcheck import settings as S  # noqa: E402
+
+TITLES = {"tgv": "Taylor-Green vortex", "ldc": "lid-driven cavity"}
+DTYPE_STYLE = {"float64": "-", "float32": "--"}
+
+
+def _magnitude(g):
+    return np.linalg.norm(g, axis=1)
+
+
+def plot_fig1(exp: "S.Experiment", results) -> Path:
+    out = S.fig_dir(results)
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = pd.read_csv(S.metrics_path(results))
+    sweep = pd.read_csv(S.sweep_path(results))
+    cols = 1 + len(exp.fig1_dtypes)
+    rows = len(exp.cases)
+    fig = plt.figure(figsize=(3.3 * cols + 4.6, 3.1 * rows + 0.4), constrained_layout=True)
+    grid = fig.add_gridspec(rows, cols + 1, width_ratios=[1.0] * cols + [1.35])
+    for i, case in enumerate(exp.cases):
+        with np.load(S.check_path(results, case.name, "float64")) as z:
+            r, tag, mag_ad = z["r"], z["tag"], _magnitude(z["g_ad"])
+        fluid = tag == FLUID
+        panels = [("AD, float64", r, tag, mag_ad)]
+        for dtype in exp.fig1_dtypes:
+            with np.load(S.check_path(results, case.name, dtype)) as z:
+                row = metrics[(metrics["case"] == case.name) & (metrics["dtype"] == dtype)].iloc[0]
+                label = f"FD, {dtype}\nrel. L2 err. {row['rel_l2']:.1e}, MSE {row['mse']:.1e}"
+                panels.append((label, z["r"], z["tag"], _magnitude(z["g_fd"])))
+        vmax = float(np.nanmax(mag_ad))
+        for j, (label, rr, tt, mag) in enumerate(panels):
+            ax = fig.add_subplot(grid[i, j])
+            wall = tt != FLUID
+            if wall.any():
+                ax.scatter(rr[wall, 0], rr[wall, 1], s=4, c="0.8", lw=0)
+            fl = tt == FLUID
+            sc = ax.scatter(rr[fl, 0], rr[fl, 1], s=max(4.0, 3200.0 / fl.sum()), c=mag, cmap="viridis",
+                            vmin=0.0, vmax=vmax, lw=0)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(label, fontsize=8.5)
+            if j == 0:
+                ax.set_ylabel(TITLES.get(case.kind, case.name) + f" ({fluid.sum()} fluid)", fontsize=9)
+        fig.colorbar(sc, ax=ax, shrink=0.85, label=r"$|\partial E_{kin} / \partial \mathbf{r}_i|$")
+    ax = fig.add_subplot(grid[:, cols])
+    eps_f = np.sort(sweep["eps_factor"].unique())
+    for i, case in enumerate(exp.cases):
+        for dtype in exp.dtypes:
+            sel = sweep[(sweep["case"] == case.name) & (sweep["dtype"] == dtype)].sort_values("eps_factor")
+            ax.loglog(sel["eps_factor"], sel["rel_l2"], DTYPE_STYLE.get(dtype, ":"), marker="o", ms=4,
+                      color=f"C{i}", label=f"{TITLES.get(case.kind, case.name)}, {dtype}")
+    ref = sweep[(sweep["dtype"] == "float64")]
+    if len(ref):  # guide slopes anchored at the float64 errors of the first case
+        sel = ref[ref["case"] == exp.cases[0].name].sort_values("eps_factor")
+        e_hi, err_hi = sel["eps_factor"].iloc[-1], sel["rel_l2"].iloc[-1]
+        e_lo, err_lo = sel["eps_factor"].iloc[0], sel["rel_l2"].iloc[0]
+        x = np.geomspace(e_hi * 1e-2, e_hi, 10)
+        ax.loglog(x, 0.2 * err_hi * (x / e_hi) ** 2, color="0.4", ls=":", lw=1.2,
+                  label=r"$\propto \epsilon^2$ (truncation)")
+        x = np.geomspace(e_lo, e_lo * 1e2, 10)
+        ax.loglog(x, 0.2 * err_lo * (e_lo / x), color="0.4", ls="-.", lw=1.2,
+                  label=r"$\propto 1/\epsilon$ (round-off)")
+    ax.axvline(exp.eps_factor, color="0.5", lw=0.8)
+    ax.text(exp.eps_factor, 0.98, r" paper $\epsilon$", transform=ax.get_xaxis_transform(), va="top", fontsize=8)
+    n_dir = int(sweep["n_directions"].iloc[0]) if len(sweep) else 0
+    ax.set(xlabel=r"$\epsilon / \Delta x$", ylabel="relative L2 error, FD vs AD",
+           title=f"step-size sweep ({n_dir} random directions)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7.5)
+    fig.suptitle(rf"Gradient check: $\partial E_{{kin}}(t_{{{exp.warmup_steps}+{exp.loss_steps}}})"
+                 rf" / \partial \mathbf{{r}}(t_{{{exp.warmup_steps}}})$, AD vs central FD, "
+                 rf"$\epsilon$ = {exp.eps:g}, $\Delta x$ = {exp.dx:g}", fontsize=10)
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig1.{ext}", dpi=150)
+    plt.close(fig)
+    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
+    shutil.copyfile(S.sweep_path(results), out / "sweep.csv")
+    print(f"fig1 -> {out / 'fig1.png'}, {out / 'metrics.csv'}")
+    return out / "fig1.png"
+
+
+def plot_growth(exp: "S.Experiment", results) -> Path:
+    out = S.fig_dir(results)
+    out.mkdir(parents=True, exist_ok=True)
+    table = pd.read_csv(S.growth_path(results))
+    fig, (ax_g, ax_e) = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
+    for i, case in enumerate(exp.cases):
+        sel = table[table["case"] == case.name].sort_values("n_steps")
+        name = TITLES.get(case.kind, case.name)
+        ax_g.loglog(sel["n_steps"], sel["grad_norm"], "o-", color=f"C{i}", label=rf"$|\nabla E_{{kin}}|$, {name}")
+        ax_g.loglog(sel["n_steps"], sel["loss"], "s:", color=f"C{i}", ms=3, label=rf"$E_{{kin}}$, {name}")
+        if np.isfinite(sel["fd_dir_relerr"]).any():
+            ax_e.loglog(sel["n_steps"], sel["fd_dir_relerr"], "o-", color=f"C{i}", label=name)
+    dt = float(table["t"].iloc[0] / table["n_steps"].iloc[0]) if len(table) else float("nan")
+    ax_g.set(xlabel=f"rollout length n (steps of dt = {dt:.3g})", ylabel=r"$|\partial E_{kin}(n) / \partial \mathbf{r}_0|$ (L2), $E_{kin}(n)$",
+             title=f"gradient w.r.t. the initial positions ({exp.growth.dtype})")
+    ax_e.set(xlabel="rollout length n (steps)", ylabel=r"$|\nabla E \cdot d - \mathrm{FD}_d| / |\mathrm{FD}_d|$",
+             title=rf"AD vs central FD along a random direction, $\epsilon$ = {exp.eps:.0e}")
+    for ax in (ax_g, ax_e):
+        ax.grid(True, which="both", alpha=0.3)
+        if ax.has_data():
+            ax.legend(fontsize=8)
+    if not ax_e.has_data():
+        ax_e.text(0.5, 0.5, "growth.fd_check is off", ha="center", transform=ax_e.transAxes)
+    for ext in ("png",):
+        fig.savefig(out / f"grad_norm_vs_steps.{ext}", dpi=150)
+    plt.close(fig)
+    table.drop(columns=["fingerprint"]).to_csv(out / "grad_norm_vs_steps.csv", index=False)
+    print(f"growth -> {out / 'grad_norm_vs_steps.png'}, {out / 'grad_norm_vs_steps.csv'}")
+    return out / "grad_norm_vs_steps.png"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--what", choices=("fig1", "growth"), default="fig1")
+    args = ap.parse_args(argv)
+    exp = S.load(args.profile)
+    results = args.results or f"results/{args.profile}"
+    (plot_fig1 if args.what == "fig1" else plot_growth)(exp, results)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,28 @@
+# Gradient check, paper Fig. 1 (gradcheck/README.md): `make fig1`, `make grad-growth` [PROFILE=smoke].
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# The computations (one stamp for the AD/FD check, one for the rollout-length sweep) depend on the
+# config, settings.py, run.py and the core, so editing any of these recomputes; run.py itself reuses
+# checks and growth rows whose inputs are unchanged. The figures depend on their computation and the
+# plot script only, so editing plot.py only re-plots. fig1 does not wait for grad-growth (minutes:
+# reverse mode through up to 1000 steps, one compilation per rollout length).
+GRADCHECK        := gradcheck
+GRADCHECK_OUT    := $(RESULTS)/gradcheck
+GRADCHECK_INPUTS := $(GRADCHECK)/config.yaml $(GRADCHECK)/settings.py $(GRADCHECK)/run.py $(CORE)
+
+.PHONY: fig1 grad-growth
+
+$(GRADCHECK_OUT)/check.done: $(GRADCHECK_INPUTS) | $(VENV)
+	$(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part check
+	@touch $@
+
+$(GRADCHECK_OUT)/growth.done: $(GRADCHECK_INPUTS) | $(VENV)
+	$(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part growth
+	@touch $@
+
+fig1: $(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv
+$(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py
+	$(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what fig1
+
+grad-growth: $(RESULTS)/fig1/grad_norm_vs_steps.png $(RESULTS)/fig1/grad_norm_vs_steps.csv
+$(RESULTS)/fig1/grad_norm_vs_steps.png $(RESULTS)/fig1/grad_norm_vs_steps.csv &: $(GRADCHECK_OUT)/growth.done $(GRADCHECK)/plot.py
+	$(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what growth

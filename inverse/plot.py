@@ -1,0 +1,106 @@
+"""Fig. 2: the inverse problem. Per case (rows): the target's initial and final states, the optimization
+path of `path_optimizer` (its initial-state iterates, coloured by iteration) from the displaced and
+from the random start, and the loss curves of every optimizer (log scale).
+
+Reads results/<profile>/inverse/{paths.npz, metrics.csv, summary.csv} (run.py); writes
+results/<profile>/fig2/fig2.{png,pdf} and copies of metrics.csv and summary.csv there.
+
+    python inverse/plot.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib import cm, colors  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+
+from inverse import scene as cube  # noqa: E402
+from inverse import settings as S  # noqa: E402
+
+STYLES = ["-", "--", ":", "-."]
+
+
+def _state_panel(ax, data, exp, case, start, off, norm):
+    key = f"{case}__{start}__{exp.path_optimizer}"
+    walls = data["walls"] - off
+    ax.scatter(walls[:, 0], walls[:, 1], s=4, marker="s", color="0.75", lw=0)
+    path = data[f"path__{key}"] - off
+    cmap = cm.viridis
+    for k in range(path.shape[0]):
+        ax.scatter(path[k, :, 0], path[k, :, 1], s=7, color=cmap(norm(k)), lw=0, zorder=2)
+    ti, tf = data[f"target_initial__{case}"] - off, data[f"target_final__{case}"] - off
+    ax.scatter(ti[:, 0], ti[:, 1], s=22, facecolor="none", edgecolor="k", lw=0.8, zorder=3, label="target initial")
+    ax.scatter(tf[:, 0], tf[:, 1], s=14, color="tab:red", lw=0, zorder=3, label="target final")
+    last = data[f"finals__{key}"][-1] - off
+    ax.scatter(last[:, 0], last[:, 1], s=18, marker="x", color="tab:orange", lw=0.8, zorder=4,
+               label="final of last iterate")
+    pad = exp.layers * exp.dx
+    ax.set(xlim=(-pad, exp.box_size + pad), ylim=(-pad, exp.box_size + pad), aspect="equal",
+           title=f"case {case}, {start} start ({exp.path_optimizer})")
+    ax.tick_params(labelsize=7)
+
+
+def plot(exp: "S.Experiment", results) -> Path:
+    results = Path(results)
+    out = S.fig_dir(results)
+    out.mkdir(parents=True, exist_ok=True)
+    data = np.load(S.paths_path(results))
+    table = pd.read_csv(S.metrics_path(results))
+    off = cube.offset(exp.dx, exp.layers)
+    norm = colors.Normalize(0, exp.iterations)
+    n_cases, n_starts = len(exp.cases), len(exp.starts)
+    fig, axes = plt.subplots(n_cases, n_starts + 1, figsize=(3.3 * (n_starts + 1) + 0.8, 3.2 * n_cases),
+                             constrained_layout=True, squeeze=False)
+    targets = dict(zip([c.name for c in exp.cases], exp.rmse_targets))
+    for i, case in enumerate(exp.cases):
+        for j, start in enumerate(exp.starts):
+            _state_panel(axes[i, j], data, exp, case.name, start.name, off, norm)
+        ax = axes[i, -1]
+        for m, opt in enumerate(exp.optimizers):
+            for j, start in enumerate(exp.starts):
+                g = table[(table["case"] == case.name) & (table["optimizer"] == opt.name)
+                          & (table["start"] == start.name)].sort_values("iteration")
+                ax.plot(g["iteration"], g["loss"], color=f"C{m}", ls=STYLES[j % len(STYLES)], marker=".", ms=3,
+                        lw=1.2, label=f"{opt.name} (lr {opt.learning_rate:g}), {start.name}")
+        if case.name in targets:
+            ax.axhline(targets[case.name] ** 2, color="k", lw=0.8, ls=":",
+                       label=f"paper: RMSE {targets[case.name]:g} after {exp.iterations} steps")
+        ax.set(yscale="log", xlabel="optimizer iteration", ylabel="loss (MSE of final positions)",
+               title=f"case {case.name}: loss")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6)
+    axes[0, 0].legend(fontsize=6, loc="upper right")
+    fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cm.viridis), ax=axes[:, n_starts - 1], shrink=0.6,
+                 label="iteration of the initial-state iterate")
+    fig.suptitle(f"Inverse problem: recover the initial positions from the final ones "
+                 f"(t = {exp.t_end:g}, {exp.n_fluid} particles)")
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"fig2.{ext}", dpi=150)
+    plt.close(fig)
+    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
+    shutil.copyfile(S.out_dir(results) / "summary.csv", out / "summary.csv")
+    print(f"fig2 -> {out / 'fig2.png'}, {out / 'metrics.csv'}")
+    return out / "fig2.png"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()
