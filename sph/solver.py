@@ -127,7 +127,7 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
         if not has_walls:
             return rho, p, u, v, T
         wall = jnp.asarray(wall_np)
-        fw = walls.fluid_weights(pairs, jnp.asarray(fluid_np, dtype))
+        fw = walls.fluid_weights(pairs, jnp.asarray(fluid_np, dtype), walls.WEIGHT_FLOOR * w0)
         p = jnp.where(wall, walls.pressure(pairs, fw, p, rho, body_force_at(r)), p)
         rho = jnp.where(wall, eos.rho(p), rho)
         u_hat = walls.extrapolate_vec(pairs, fw, u)
