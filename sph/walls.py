@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 
 WEIGHT_FLOOR = 1e-6
-"""Fluid weights summing to at most WEIGHT_FLOOR * W(0) count as none (see `fluid_weights`)."""
+"""Below WEIGHT_FLOOR * W(0), the derivative of 1 / (sum of fluid weights) is cut (`fluid_weights`)."""
 
 
 @jax.tree_util.register_dataclass
@@ -31,8 +31,7 @@ class FluidWeights:
     """Shepard weights of the fluid neighbours of every particle.
 
     w_f   (N, K) W_ij where j is a fluid particle, 0 otherwise
-    inv   (N,)   1 / sum_j w_f (0 where a particle has no fluid neighbour, or fluid weights summing to
-                 at most `floor`)
+    inv   (N,)   1 / sum_j w_f (0 where a particle has no fluid neighbour)
     """
 
     w_f: jax.Array
@@ -42,17 +41,21 @@ class FluidWeights:
 def fluid_weights(pairs, fluid, floor=0.0) -> FluidWeights:
     """`fluid` is a (N,) 0/1 float array (1 for fluid particles).
 
-    A particle whose fluid weights sum to at most `floor` counts as having no fluid neighbour.
-    Pass a small positive floor (the solver uses WEIGHT_FLOOR * W(0)): a wall particle that only
+    Where the fluid weights sum to at most `floor`, the value of 1 / sum is kept but its derivative
+    is not propagated (the solver uses floor = WEIGHT_FLOOR * W(0)): a wall particle that only
     touches the far tail of a fluid kernel has a sum of ~1e-30 in float32, and the derivative of
-    1 / sum, -1 / sum^2, overflows to inf there, which turns the gradient of the whole rollout into
-    NaN (inf * 0). Such a wall particle's own weight in any fluid sum is equally small, so leaving it
-    at zero changes the fluid's forces by less than the floor's relative size.
+    1 / sum, -1 / sum^2, overflows to inf there, which turned the gradient of the whole rollout into
+    NaN (inf * 0). Such a wall particle's own weight in any fluid sum is equally small, so the
+    dropped term changes the fluid's gradients by less than the floor's relative size.
     """
     w_f = pairs.w * pairs.gather(fluid)
     total = jnp.sum(w_f, axis=1)
-    some = total > floor
-    return FluidWeights(w_f=w_f, inv=jnp.where(some, 1.0 / jnp.where(some, total, 1.0), 0.0))
+    some, live = total > 0, total > floor
+    # the same value everywhere; below the floor the derivative of 1 / total is not propagated (the
+    # differentiated branch never sees a tiny total, so its derivative stays finite where masked)
+    tail = jax.lax.stop_gradient(1.0 / jnp.where(some, total, 1.0))
+    inv = jnp.where(live, 1.0 / jnp.where(live, total, 1.0), tail)
+    return FluidWeights(w_f=w_f, inv=jnp.where(some, inv, 0.0))
 
 
 def extrapolate(pairs, fw: FluidWeights, x):
