@@ -21,7 +21,6 @@ from pathlib import Path
 if __package__ in (None, ""):  # run as a script: make the repository root importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-import jax.numpy as jnp
 import numpy as np
 
 import sph
@@ -47,11 +46,7 @@ def initial_state(exp: "S.Experiment", column: "S.Column", solver: sph.Solver):
     state, nbrs = solver.init_fn()
     if not exp.hydrostatic_init:
         return state, nbrs
-    fluid = state.tag == sph.FLUID
-    depth = exp.offset + column.height - state.r[:, 1]
-    p = exp.fluid.rho_ref * exp.g * depth
-    state = state.replace(p=jnp.where(fluid, p, state.p), rho=jnp.where(fluid, solver.eos.rho(p), state.rho))
-    return state, nbrs
+    return tank.hydrostatic(state, solver.eos, exp.fluid.rho_ref, exp.g, exp.offset + column.height), nbrs
 
 
 def write_every_for(exp: "S.Experiment", dt: float) -> int:

@@ -283,6 +283,8 @@ def simulate_case(name: str, case, folder: Path, fingerprint: str = "", progress
         info["dt_limits"] = {k: float(v) for k, v in solver.dt_limits.items()}
         monitor = Monitor(case, scene, geo, solver.dt)
         state, nbrs = solver.init_fn()
+        if case.kind == "dam_break" and case.hydrostatic_init:
+            state = tank.hydrostatic(state, solver.eos, case.material.rho_ref, geo.g, geo.floor + case.column[1])
         monitor.observe(0, state)
         writer = ThinWriter.create(traj, scene.tag, scene.dim, dtype=solver.dtype, keep=("velocity", "density"),
                                    attrs={"fingerprint": fingerprint, "case": name})

@@ -70,6 +70,7 @@ class Case:
     # dam break: water column (width, height) in a tank (length, height); gravity from effects.gravity
     column: tuple[float, float] = (2.0, 1.0)
     tank: tuple[float, float] = (5.366, 2.0)
+    hydrostatic_init: bool = True  # start from p = rho g (H - y) (sph.cases.tank.hydrostatic), as make fig8
     # lid-driven cavity
     lid_velocity: float = 1.0
     # Taylor-Green vortex: initial positions

@@ -5,13 +5,14 @@ Tank interior [0, L_tank] x [0, H_tank] (shifted by `layers * dx` into the scene
 [0, width] x [0, height] against the left wall, gravity g in -y. u_ref = sqrt(2 g height), the
 largest free-fall speed of the column.
 """
+import jax.numpy as jnp
 import numpy as np
 
 from ..config import Effects, Material
 from ..domain import Domain
 from ..lattice import cartesian, wall_layers
 from ..scene import Scene
-from ..state import FLUID, WALL
+from ..state import FLUID, WALL, ParticleState
 
 
 def scene(dx: float, material: Material, effects: Effects, width: float, height: float, tank_length: float,
@@ -31,3 +32,14 @@ def scene(dx: float, material: Material, effects: Effects, width: float, height:
 def u_ref(g: float, height: float) -> float:
     """Reference speed sqrt(2 g H) of a column of height H."""
     return float(np.sqrt(2.0 * g * height))
+
+
+def hydrostatic(state: ParticleState, eos, rho_ref: float, g: float, surface: float) -> ParticleState:
+    """The fluid at rest in hydrostatic balance: p = rho_ref g (surface - y) and rho = EoS^-1(p) on the
+    fluid particles (walls keep theirs; the wall pass extrapolates them, Adami 2012 eq. 27). Starting a
+    column from uniform density instead lets it settle under gravity first, ringing with a compression
+    wave of amplitude ~ rho_ref g H / c_ref^2 that adds to later impact peaks. `surface` is the free
+    surface height in scene coordinates (tank offset + column height)."""
+    fluid = state.tag == FLUID
+    p = rho_ref * g * (surface - state.r[:, 1])
+    return state.replace(p=jnp.where(fluid, p, state.p), rho=jnp.where(fluid, eos.rho(p), state.rho))
