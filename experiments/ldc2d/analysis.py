@@ -29,6 +29,7 @@ if __package__ in (None, ""):  # run as a script: make the repository root impor
 import h5py
 import numpy as np
 import pandas as pd
+from scipy.spatial import cKDTree
 
 from sph.kernels import make_kernel
 from sph.state import FLUID, MOVING_WALL, WALL
@@ -65,19 +66,21 @@ def ghia(component: str, re: int = 100, path=None):
 
 
 # -- interpolation ---------------------------------------------------------------------------------
-def shepard(points, r, f, volume, kernel, chunk: int = 256):
+def shepard(points, r, f, volume, kernel):
     """Shepard-normalised SPH interpolation of `f` (N,) or (N, k) from particles at `r` (N, dim) with
-    volumes `volume` (N,) onto `points` (P, dim); NaN where no particle is within the kernel support."""
-    f = np.asarray(f, np.float64)
-    out = np.full((len(points),) + f.shape[1:], np.nan)
-    for s in range(0, len(points), chunk):
-        p = points[s:s + chunk]
-        d = np.linalg.norm(p[:, None, :] - r[None, :, :], axis=2)
-        w = np.asarray(kernel.w(d)) * volume[None, :]
-        tot = w.sum(axis=1)
-        ok = tot > 0
-        out[s:s + chunk][ok] = (w[ok] @ f) / tot[ok].reshape((-1,) + (1,) * (f.ndim - 1))
-    return out
+    volumes `volume` (N,) onto `points` (P, dim); NaN where no particle is within the kernel support.
+    Only the pairs within the kernel's cutoff are formed (a k-d tree), so the cost is O(P + N)."""
+    points, f = np.asarray(points, np.float64), np.asarray(f, np.float64)
+    pairs = cKDTree(points).sparse_distance_matrix(cKDTree(r), kernel.cutoff, output_type="ndarray")
+    i, j = pairs["i"], pairs["j"]
+    w = np.asarray(kernel.w(pairs["v"]), np.float64) * volume[j]
+    tot = np.bincount(i, w, minlength=len(points))
+    flat = f.reshape(len(f), -1)
+    num = np.stack([np.bincount(i, w * flat[j, c], minlength=len(points)) for c in range(flat.shape[1])], axis=1)
+    out = np.full(num.shape, np.nan)
+    ok = tot > 0
+    out[ok] = num[ok] / tot[ok, None]
+    return out.reshape((len(points),) + f.shape[1:])
 
 
 def mirrored_wall_velocity(r, vel, u_wall, fluid, volume, kernel):
@@ -127,6 +130,7 @@ class Interpolator:
         self.u_wall = np.zeros((len(self.tag), int(self.meta["dim"])))
         self.u_wall[self.tag == MOVING_WALL, 0] = lid
         assert np.all(np.isin(self.tag, (FLUID, WALL, MOVING_WALL)))
+        self._sources = {}
 
     def frame(self, k: int):
         """(r, velocity, rho) of frame k (velocity per analysis.velocity)."""
@@ -135,19 +139,29 @@ class Interpolator:
             g = f["00000"]
             return g["position"][k], g[name][k], g["density"][k]
 
+    def sources(self, k: int):
+        """(r, velocity, volume) of the particles the profiles of frame k interpolate from: the fluid,
+        and with `walls: mirror` also the walls carrying their no-slip velocity. Cached per frame
+        (the Ghia points and the plotted lines read the same frames)."""
+        if k not in self._sources:
+            r, vel, rho = self.frame(k)
+            vol = self.mass / rho
+            if self.analysis.walls == "mirror":
+                vel = np.where(self.fluid[:, None], vel,
+                               mirrored_wall_velocity(r, vel, self.u_wall, self.fluid, vol, self.kernel))
+                src = np.ones_like(self.fluid)
+            else:
+                src = self.fluid
+            self._sources[k] = (r[src], vel[src], vol[src])
+        return self._sources[k]
+
     def profiles(self, k: int, coord_u, coord_v):
         """u at (0.5, coord_u) and v at (coord_v, 0.5), cavity coordinates, from frame k."""
-        r, vel, rho = self.frame(k)
-        vol = self.mass / rho
-        if self.analysis.walls == "mirror":
-            vel = np.where(self.fluid[:, None], vel, mirrored_wall_velocity(r, vel, self.u_wall, self.fluid, vol, self.kernel))
-            src = np.ones_like(self.fluid)
-        else:
-            src = self.fluid
+        r, vel, vol = self.sources(k)
         pu, _ = centreline_points(coord_u, self.offset)
         _, pv = centreline_points(coord_v, self.offset)
-        u = shepard(pu, r[src], vel[src, 0], vol[src], self.kernel)
-        v = shepard(pv, r[src], vel[src, 1], vol[src], self.kernel)
+        u = shepard(pu, r, vel[:, 0], vol, self.kernel)
+        v = shepard(pv, r, vel[:, 1], vol, self.kernel)
         return u, v
 
     def averaged(self, frames, coord_u, coord_v):
