@@ -99,6 +99,13 @@ def test_config_profiles_load():
     paper = S.load("paper")
     assert paper.dx == 0.02 and paper.column("tall").t_end == 8.0
     assert (paper.column("tall").width, paper.column("square").width) == (2.0, 1.0)
+    # the surge-front checks: the paper's square column and its numerics, only dx and walls differ
+    for profile, dx, walls in (("square_fine", 0.01, "free_slip"), ("square_coarse", 0.04, "free_slip"),
+                               ("square_noslip", 0.02, "no_slip")):
+        exp = S.load(profile)
+        assert (exp.dx, exp.effects.walls) == (dx, walls)
+        assert [c.name for c in exp.columns] == ["square"] and exp.column("square").width == 1.0
+        assert exp.numerics == paper.numerics and exp.effects.riemann and exp.effects.density_reinit_every == 20
 
 
 @pytest.mark.parametrize("override, key", [
