@@ -4,11 +4,14 @@ PROFILE ?= paper
 PY      := .venv/bin/python
 VENV    := .venv/.stamp
 RESULTS := results/$(PROFILE)
-# Every run depends on the core: editing sph/ re-runs what uses it.
-CORE    := $(shell find sph -name '*.py' 2>/dev/null)
-export PYTHONPATH := $(CURDIR)
+# Run steps always call their run script (FORCE): the script's own cache (sph.runs) decides what
+# re-runs, from fingerprints of the config and of exactly the code that can change the numbers, and
+# notices damaged or incomplete outputs. A run step touches its stamp only when something changed,
+# so the figures that depend on the stamp re-plot only then.
+FORCE:
 
-.PHONY: setup setup-lb test bench fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig10 stability clean help
+
+.PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig10 stability clean help
 .DEFAULT_GOAL := help
 
 help:
@@ -21,15 +24,18 @@ help:
 	@echo "make fig10 [PROFILE=smoke]      heated channel (paper Fig. 10) + heat-validation"
 	@echo "make heat-validation            heat operator vs the analytical decay of a sine, dx 0.05-0.01"
 	@echo "make stability [PROFILE=smoke]  matrix of hard cases -> results/<profile>/stability/"
+	@echo "make accuracy [PROFILE=smoke]   accuracy-cost atlas: error vs wall time of every run record + a TGV sweep"
+	@echo "make <folder>                   any experiments/<folder> with a tgv2d-style rules.mk (e.g. a copy of tgv2d)"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make test                       test suite"
 	@echo "make setup / setup-lb           core environment / LagrangeBench environment"
 
 setup: $(VENV)
-$(VENV): environment.txt
+$(VENV): environment.txt pyproject.toml
 	python3 -m venv .venv
 	.venv/bin/pip install --quiet --upgrade pip
 	.venv/bin/pip install --quiet -r environment.txt
+	.venv/bin/pip install --quiet --no-deps -e .
 	touch $@
 
 setup-lb: .venv-lb/.stamp
@@ -44,7 +50,7 @@ bench: $(VENV)
 	$(PY) bench/bench_effects.py
 	$(PY) bench/bench_grad_memory.py
 
-include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk)
+include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
 
 clean:
 	rm -rf results

@@ -18,9 +18,6 @@ import shutil
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -29,7 +26,10 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from sph.state import FLUID  # noqa: E402
-from gradcheck import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 TITLES = {"tgv": "Taylor-Green vortex", "ldc": "lid-driven cavity"}
 DTYPE_STYLE = {"float64": "-", "float32": "--"}

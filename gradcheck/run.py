@@ -28,9 +28,6 @@ import sys
 import time
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -39,7 +36,10 @@ import pandas as pd
 import sph
 from sph.cases import ldc, tgv
 from sph.rollout import scan_rollout
-from gradcheck import settings as S
+try:
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 METRIC_COLUMNS = ["case", "dtype", "dx", "n_fluid", "n_particles", "dt", "warmup_steps", "loss_steps", "eps",
                   "loss", "grad_norm_ad", "grad_norm_fd", "rel_l2", "max_abs", "mse", "nonfinite_ad", "ad_rel_l2_vs_ad64",

@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -78,6 +78,7 @@ class Experiment:
     growth: Growth = field(default_factory=Growth)
 
     def __post_init__(self):
+        require_finite(self)
         require(len(self.cases) > 0, "cases", "needs at least one case")
         names = [c.name for c in self.cases]
         for i, n in enumerate(names):
@@ -104,6 +105,7 @@ class Experiment:
                 f"must be >= 1 and divide fd_chunk ({self.fd_chunk}), got {self.fd_vmap}")
         require(self.extra_capacity >= 0, "extra_capacity", f"must be >= 0, got {self.extra_capacity}")
         require(self.wall_layers >= 1, "wall_layers", f"must be >= 1, got {self.wall_layers}")
+        require(self.lid_velocity > 0, "lid_velocity", f"must be positive, got {self.lid_velocity}")
 
     @property
     def eps(self) -> float:

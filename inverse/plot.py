@@ -12,9 +12,6 @@ import shutil
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -24,8 +21,12 @@ import pandas as pd  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from inverse import scene as cube  # noqa: E402
-from inverse import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import scene as cube
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import scene as cube
+    import settings as S
 
 STYLES = ["-", "--", ":", "-."]
 

@@ -40,9 +40,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -52,8 +49,12 @@ import pandas as pd
 import sph
 from sph.configtools import digest, to_mapping
 from sph.rollout import scan_rollout
-from inverse import scene as cube
-from inverse import settings as S
+try:
+    from . import scene as cube
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import scene as cube
+    import settings as S
 
 
 @dataclass(frozen=True, eq=False)

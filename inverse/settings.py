@@ -7,7 +7,7 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -103,6 +103,7 @@ class Experiment:
     rmse_targets: tuple[float, ...] = ()
 
     def __post_init__(self):
+        require_finite(self)
         require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
         require(len(self.u0) == 2, "u0", f"expected 2 entries (x, y), got {len(self.u0)}")
         n_side = self.cube_size / self.dx

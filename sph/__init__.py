@@ -1,8 +1,9 @@
 """sph: a thin, differentiable weakly compressible SPH core in JAX (reproduction of JAX-SPH).
 
-Import order matters for precision: `sph.precision` switches x64 on before any array exists.
+`import sph` leaves JAX's x64 flag alone; a solver built with `numerics.dtype: float64` switches it
+on (`sph.precision.enable_x64`), float32 runs never need it.
 """
-from . import precision  # noqa: F401  (enables x64 first)
+from . import precision  # noqa: F401
 from .config import Effects, Material, Numerics
 from .configtools import ConfigError
 from .domain import Domain

@@ -1,12 +1,17 @@
-"""Frozen, validated configuration of the material, the numerics and the declared effects."""
+"""Frozen, validated configuration of the material, the numerics and the declared effects.
+
+Every field is checked on construction, named in the error (`material.eta: ...`): every number must
+be finite, and each has its sign or range (see the class docstrings).
+"""
 from dataclasses import dataclass
 from typing import Optional
 
-from .configtools import require
+from .configtools import require, require_finite
 from .kernels import KERNELS
 from .precision import DTYPES
 
 WALL_MODES = (None, "no_slip", "free_slip")
+NEIGHBOR_SEARCHES = ("cell_sort", "jax_md")
 
 
 @dataclass(frozen=True)
@@ -27,8 +32,9 @@ class Material:
     c_p: Optional[float] = None
 
     def __post_init__(self):
+        require_finite(self, "material")
         require(self.rho_ref > 0, "material.rho_ref", f"must be positive, got {self.rho_ref}")
-        require(self.eta >= 0, "material.eta", f"must be >= 0, got {self.eta}")
+        require(self.eta >= 0, "material.eta", f"must be >= 0 (0 = inviscid), got {self.eta}")
         require(self.u_ref > 0, "material.u_ref", f"must be positive, got {self.u_ref}")
         require(self.kappa is None or self.kappa > 0, "material.kappa", f"must be positive, got {self.kappa}")
         require(self.c_p is None or self.c_p > 0, "material.c_p", f"must be positive, got {self.c_p}")
@@ -61,6 +67,7 @@ class Effects:
     artificial_viscosity: float = 0.0
 
     def __post_init__(self):
+        require_finite(self, "effects")
         require(self.walls in WALL_MODES, "effects.walls",
                 f"{self.walls!r} is not one of {WALL_MODES} (null = no walls)")
         require(not (self.riemann and not self.density_evolution), "effects.riemann",
@@ -102,11 +109,14 @@ class Numerics:
     gamma                  Tait exponent
     p_bg_factor            background pressure in the EoS, p_bg = p_bg_factor * p_ref
     p_b_factor             TVF background pressure, p_b = p_b_factor * p_ref (Adami 2013)
-    eta_limiter            Riemann dissipation limiter eta (Zhang 2017b eq. 11); negative = off
-    dt                     fixed time step instead of the CFL one (null = from the limits)
+    eta_limiter            Riemann dissipation limiter eta (Zhang 2017b eq. 11); negative = off (finite)
+    dt                     fixed time step instead of the CFL one (null = from the limits); one above the
+                           limits is reported by build_solver (a `sph.solver.UnstableTimeStep` warning)
     dtype                  float64 or float32
     skin_factor            neighbour-list skin = skin_factor * dx; lists rebuild after skin/2 motion
     capacity_multiplier    neighbour slots allocated per particle relative to the current maximum
+    neighbor_search        "cell_sort" (sort-based cell list built for this solver, sph.cell_list) or
+                           "jax_md" (jax-md's cell list, the reference implementation)
     """
 
     kernel: str = "quintic"
@@ -121,15 +131,22 @@ class Numerics:
     dtype: str = "float64"
     skin_factor: float = 0.5
     capacity_multiplier: float = 1.25
+    neighbor_search: str = "jax_md"
 
     def __post_init__(self):
+        require_finite(self, "numerics")
         require(self.kernel in KERNELS, "numerics.kernel", f"{self.kernel!r} is not one of {sorted(KERNELS)}")
         require(self.dtype in DTYPES, "numerics.dtype", f"{self.dtype!r} is not one of {sorted(DTYPES)}")
         require(self.h_factor > 0, "numerics.h_factor", f"must be positive, got {self.h_factor}")
         require(0 < self.cfl <= 1, "numerics.cfl", f"must be in (0, 1], got {self.cfl}")
         require(self.c_ref_factor > 0, "numerics.c_ref_factor", f"must be positive, got {self.c_ref_factor}")
         require(self.gamma > 0, "numerics.gamma", f"must be positive, got {self.gamma}")
+        require(self.p_bg_factor >= 0, "numerics.p_bg_factor", f"must be >= 0, got {self.p_bg_factor}")
+        require(self.p_b_factor >= 0, "numerics.p_b_factor", f"must be >= 0 (0 = no TVF background pressure), "
+                f"got {self.p_b_factor}")
         require(self.dt is None or self.dt > 0, "numerics.dt", f"must be positive or null, got {self.dt}")
         require(self.skin_factor >= 0, "numerics.skin_factor", f"must be >= 0, got {self.skin_factor}")
+        require(self.neighbor_search in NEIGHBOR_SEARCHES, "numerics.neighbor_search",
+                f"{self.neighbor_search!r} is not one of {list(NEIGHBOR_SEARCHES)}")
         require(self.capacity_multiplier >= 1, "numerics.capacity_multiplier",
                 f"must be >= 1, got {self.capacity_multiplier}")

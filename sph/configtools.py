@@ -7,6 +7,8 @@ their own value checks in ``__post_init__`` by raising ``ConfigError`` via ``req
 import dataclasses
 import hashlib
 import json
+import math
+import re
 import types
 import typing
 from pathlib import Path
@@ -16,7 +18,17 @@ import yaml
 
 
 class ConfigError(ValueError):
-    """A configuration value is unknown, mistyped or inconsistent; the message names the key."""
+    """A configuration value is unknown, mistyped or inconsistent; the message names the key.
+
+    Errors raised while loading a profile of a YAML file (`load_profile`) also carry `file` (the
+    YAML file), `profile` (the profile that was asked for), `origin` (the profile the offending key
+    is written in: an inherited profile, or "command line" for an override) and `key` (its path);
+    elsewhere these are None.
+    """
+
+    def __init__(self, msg: str, *, file=None, profile=None, origin=None, key=None):
+        super().__init__(msg)
+        self.file, self.profile, self.origin, self.key = file, profile, origin, key
 
 
 def require(cond: bool, key: str, msg: str) -> None:
@@ -24,7 +36,34 @@ def require(cond: bool, key: str, msg: str) -> None:
         raise ConfigError(f"{key}: {msg}")
 
 
-def _check_type(value, tp, key):
+def is_finite_number(x) -> bool:
+    """True for a real number (not a bool) that is neither NaN nor infinite."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def require_finite(obj, section: str = "", allow_inf=()) -> None:
+    """Check that every number of the config dataclass `obj` is finite: its float and int fields
+    and the entries of tuple fields (None is left to the class). Named `<section>.<field>`;
+    fields in `allow_inf` may be +-inf (never NaN). For `__post_init__`, so that a config built in
+    Python (not from YAML) is checked like one loaded by `from_mapping`."""
+    prefix = f"{section}." if section else ""
+
+    def check(v, key, name):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return
+        if math.isnan(v) or (math.isinf(v) and name not in allow_inf):
+            raise ConfigError(f"{key}: must be a finite number, got {v!r}")
+
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if isinstance(v, (tuple, list)):
+            for i, x in enumerate(v):
+                check(x, f"{prefix}{f.name}[{i}]", f.name)
+        else:
+            check(v, prefix + f.name, f.name)
+
+
+def _check_type(value, tp, key, allow_inf: bool = False):
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
     if tp is typing.Any:
@@ -37,7 +76,7 @@ def _check_type(value, tp, key):
             if a is type(None):
                 continue
             try:
-                return _check_type(value, a, key)
+                return _check_type(value, a, key, allow_inf)
             except ConfigError as e:
                 errors.append(e)
         if len(errors) == 1:
@@ -47,10 +86,10 @@ def _check_type(value, tp, key):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{key}: expected a list, got {value!r}")
         if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_check_type(v, args[0], f"{key}[{i}]") for i, v in enumerate(value))
+            return tuple(_check_type(v, args[0], f"{key}[{i}]", allow_inf) for i, v in enumerate(value))
         if len(args) != len(value):
             raise ConfigError(f"{key}: expected {len(args)} entries, got {len(value)}")
-        return tuple(_check_type(v, a, f"{key}[{i}]") for i, (v, a) in enumerate(zip(args, value)))
+        return tuple(_check_type(v, a, f"{key}[{i}]", allow_inf) for i, (v, a) in enumerate(zip(args, value)))
     if dataclasses.is_dataclass(tp):
         if isinstance(value, tp):
             return value
@@ -58,6 +97,9 @@ def _check_type(value, tp, key):
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{key}: expected a number, got {value!r}")
+        if math.isnan(value) or (math.isinf(value) and not allow_inf):
+            raise ConfigError(f"{key}: must be a finite number, got {value!r}"
+                              + ("" if math.isnan(value) else " (use a large finite value)"))
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -92,7 +134,9 @@ def from_mapping(cls, data, where: str = ""):
         )
     kwargs = {}
     for name, value in data.items():
-        kwargs[name] = _check_type(value, hints[name], prefix + name)
+        # a field may accept +-inf with dataclasses.field(metadata={"allow_inf": True}); NaN never
+        allow_inf = bool(fields[name].metadata.get("allow_inf", False))
+        kwargs[name] = _check_type(value, hints[name], prefix + name, allow_inf)
     missing = [n for n, f in fields.items() if n not in kwargs and f.default is dataclasses.MISSING
                and f.default_factory is dataclasses.MISSING]
     if missing:
@@ -144,35 +188,115 @@ def to_mapping(cfg) -> dict:
     return conv(cfg)
 
 
-def profile_mapping(path, profile: str, overrides: Optional[dict] = None) -> dict:
+def profile_mapping(path, profile: str, overrides: Optional[dict] = None, with_origins: bool = False):
     """The merged mapping of profile `profile` of a YAML file with a single top-level key
     `profiles`: a profile may say `inherit: <other>` to be merged key by key over that profile
-    (lists are replaced); `overrides` (a mapping) is merged last."""
+    (lists are replaced); `overrides` (a mapping) is merged last.
+
+    With `with_origins`, returns (mapping, origins): origins maps each key path (a tuple, e.g.
+    ("numerics", "cfl")) to the profile it was written in, or "command line" for `overrides`
+    (see `key_origin`)."""
     data = load_yaml(path)
     unknown = sorted(set(data) - {"profiles"})
     if unknown:
-        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)")
-    return merge(_resolve_profile(data.get("profiles") or {}, profile, ()), overrides or {})
+        raise ConfigError(f"{unknown[0]}: unknown key (known keys: profiles)", file=str(path), profile=profile,
+                          key=unknown[0])
+    try:
+        own, origins = _resolve_profile(data.get("profiles") or {}, profile, ())
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}", file=str(path), profile=profile) from None
+    out = merge(own, overrides or {})
+    origins = _merge_origins(origins, overrides or {}, "command line")
+    return (out, origins) if with_origins else out
+
+
+_KEY_PART = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def key_path(key: str) -> tuple:
+    """"numerics.cfl" -> ("numerics", "cfl"); "methods[0].effects" -> ("methods", 0, "effects")."""
+    return tuple(int(m.group(2)) if m.group(2) is not None else m.group(1) for m in _KEY_PART.finditer(key))
+
+
+def key_origin(origins: dict, key, default: Optional[str] = None) -> Optional[str]:
+    """The profile that wrote `key` (a path string or tuple): the origin of its longest prefix
+    recorded in `origins` (list entries belong to the profile that wrote the list)."""
+    parts = key_path(key) if isinstance(key, str) else tuple(key)
+    for n in range(len(parts), 0, -1):
+        if parts[:n] in origins:
+            return origins[parts[:n]]
+    return default
+
+
+def locate(error: ConfigError, path, profile: str, origins: dict) -> ConfigError:
+    """`error` (whose message starts with "profiles.<profile>.<key>: ...") re-worded to name the file,
+    the profile the key is written in and the key: "<file>: profiles.<origin>.<key>: ... (profile
+    <profile> inherits it from <origin>)", or "<file>: <key>: ... (set on the command line over
+    profile <profile>)" for an override. Returns a new ConfigError carrying file/profile/origin/key."""
+    msg = str(error)
+    head = f"profiles.{profile}."
+    key, rest = None, msg
+    if msg.startswith(head) and ": " in msg:
+        key, rest = msg[len(head):].split(": ", 1)
+    if key is None:
+        return ConfigError(f"{path}: {msg}", file=str(path), profile=profile)
+    origin = key_origin(origins, key, default=profile)
+    if origin == "command line":
+        text = f"{path}: {key}: {rest} (set on the command line over profile {profile})"
+    elif origin != profile:
+        text = f"{path}: profiles.{origin}.{key}: {rest} (profile {profile} inherits it from {origin})"
+    else:
+        text = f"{path}: profiles.{profile}.{key}: {rest}"
+    return ConfigError(text, file=str(path), profile=profile, origin=origin, key=key)
 
 
 def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
     """Build `cls` from profile `profile` of a YAML file (see `profile_mapping`). Errors name the
-    key path, e.g. ``profiles.smoke.dx[0]``."""
-    return from_mapping(cls, profile_mapping(path, profile, overrides), f"profiles.{profile}")
+    file, the profile the offending key is written in (an inherited one if the requested profile
+    does not set it) and the key path, e.g. ``config.yaml: profiles.paper.dx[0]: ... (profile smoke
+    inherits it from paper)``; the ConfigError carries them as `file`, `profile`, `origin`, `key`."""
+    mapping, origins = profile_mapping(path, profile, overrides, with_origins=True)
+    try:
+        return from_mapping(cls, mapping, f"profiles.{profile}")
+    except ConfigError as e:
+        raise locate(e, path, profile, origins) from None
 
 
-def _resolve_profile(profiles: dict, name: str, seen: tuple) -> dict:
+def _paths(d: dict, prefix: tuple = ()):
+    for k, v in d.items():
+        yield prefix + (k,), v
+        if isinstance(v, dict):
+            yield from _paths(v, prefix + (k,))
+
+
+def _merge_origins(origins: dict, own: dict, name: str) -> dict:
+    """Origins after merging mapping `own` (written in profile `name`) over the recorded ones: every
+    path of `own` is `name`'s; a non-mapping value of `own` replaces whatever the parent had below it."""
+    out = dict(origins)
+    for p, v in _paths(own):
+        if not isinstance(v, dict):
+            for q in [q for q in out if len(q) > len(p) and q[:len(p)] == p]:
+                del out[q]
+        out[p] = name
+    return out
+
+
+def _resolve_profile(profiles: dict, name: str, seen: tuple):
+    """(mapping, origins) of profile `name`, following `inherit`."""
     if name not in profiles:
         raise ConfigError(f"profiles.{name}: no such profile (known: {', '.join(sorted(profiles))})")
     if name in seen:
         raise ConfigError(f"profiles.{name}.inherit: circular inheritance {' -> '.join(seen + (name,))}")
+    if not isinstance(profiles[name] or {}, dict):
+        raise ConfigError(f"profiles.{name}: expected a mapping, got {profiles[name]!r}")
     own = dict(profiles[name] or {})
     parent = own.pop("inherit", None)
     if parent is None:
-        return own
+        return own, _merge_origins({}, own, name)
     if not isinstance(parent, str):
         raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
-    return merge(_resolve_profile(profiles, parent, seen + (name,)), own)
+    base, origins = _resolve_profile(profiles, parent, seen + (name,))
+    return merge(base, own), _merge_origins(origins, own, name)
 
 
 def digest(obj) -> str:
@@ -181,11 +305,9 @@ def digest(obj) -> str:
 
 
 def source_hash(root, files) -> str:
-    """Short hash of the solver sources (`root`/sph/**/*.py) and the given extra files, so that a
-    cached result is reused only while the code that made it is unchanged."""
-    root = Path(root)
-    h = hashlib.sha256()
-    for p in sorted((root / "sph").rglob("*.py")) + [Path(f) for f in files]:
-        h.update(str(Path(p).resolve().relative_to(root.resolve())).encode())
-        h.update(Path(p).read_bytes())
-    return h.hexdigest()[:16]
+    """Cache key of the code behind a result: the solver's physics modules and the sph modules the
+    given experiment `files` import (transitively), plus those files, each without docstrings and
+    comments (`sph.runs.code_fingerprint`); `root` is kept for the callers' signature."""
+    from .runs import code_fingerprint  # runs imports this module
+
+    return code_fingerprint(files)

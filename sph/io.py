@@ -202,10 +202,14 @@ def load_checkpoint(path, traj: str = "00000"):
 def read_trajectory(path, traj: str = "00000") -> dict:
     """Every dataset of a trajectory (checkpoint excluded) as numpy arrays, plus its attrs under
     'attrs'."""
-    with h5py.File(path, "r") as f:
-        g = f[traj]
-        out = {k: g[k][...] for k in g.keys() if isinstance(g[k], h5py.Dataset)}
-        out["attrs"] = dict(g.attrs)
+    try:
+        with h5py.File(path, "r") as f:
+            g = f[traj]
+            out = {k: g[k][...] for k in g.keys() if isinstance(g[k], h5py.Dataset)}
+            out["attrs"] = dict(g.attrs)
+    except (OSError, KeyError) as e:
+        raise OSError(f"{path}: cannot read trajectory {traj} ({e}); the file is damaged or incomplete: "
+                      "re-run its experiment (its run script, which make calls, sets it aside and redoes the run)") from None
     return out
 
 

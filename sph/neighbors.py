@@ -1,36 +1,47 @@
-"""Neighbour search through jax-md cell lists, in jax-md's Dense format (N, K) padded with N.
+"""Neighbour search behind one interface: this solver's sort-based cell list or jax-md's (reference).
 
-The list holds all pairs within cutoff + skin and is rebuilt by `update` only when some particle has
-moved more than skin / 2 since the last build (jax-md's displacement threshold), so most steps reuse
-it. `update` never changes the capacity K; when more than K neighbours (or cell-list slots) are
-needed it raises `did_buffer_overflow`, and the caller must re-`allocate` outside `jit`
-(see `sph.rollout`).
+Both give jax-md's Dense format, (N, K) idx padded with N, holding all pairs within cutoff + skin;
+`update` rebuilds the list only when some particle has moved more than skin / 2 since the last
+build (the Verlet-skin threshold), so most steps reuse it. `update` never changes the capacity K;
+when more than K neighbours (or cell-list slots) are needed it raises `did_buffer_overflow`, and the
+caller must re-`allocate` outside `jit` (see `sph.rollout`).
+
+backend "cell_sort": `sph.cell_list` (argsort by cell, per-cell-offset gathers with a running
+compaction; memory O(N K)). backend "jax_md": `jax_md.partition.neighbor_list`, kept as the
+reference implementation the cell list is tested against.
 """
 from dataclasses import dataclass
+from typing import Any
 
 import jax
-from jax_md import partition
+
+from . import cell_list
+
+BACKENDS = ("cell_sort", "jax_md")
 
 
 @dataclass(frozen=True, eq=False)
 class NeighborSearch:
-    """allocate(r) builds a list with fresh capacity (not jittable); update(r, nbrs) is jittable."""
+    """allocate(r) builds a list with fresh capacity (not jittable); update(r, nbrs) is jittable.
+    Lists carry idx, reference_position, did_buffer_overflow, max_occupancy, cell_list_capacity."""
 
-    fns: partition.NeighborListFns
+    impl: Any
     cutoff: float
     skin: float
+    backend: str = "jax_md"
 
     def allocate(self, r, extra_capacity: int = 0):
-        return self.fns.allocate(jax.lax.stop_gradient(r), extra_capacity=extra_capacity)
+        return self.impl.allocate(jax.lax.stop_gradient(r), extra_capacity=extra_capacity)
 
     def update(self, r, nbrs):
-        return self.fns.update(jax.lax.stop_gradient(r), nbrs)
+        return self.impl.update(jax.lax.stop_gradient(r), nbrs)
 
 
-def make_neighbor_search(domain, cutoff: float, skin: float, capacity_multiplier: float = 1.25) -> NeighborSearch:
-    """Cell-list neighbour search over `domain` for pairs closer than `cutoff` (+ `skin` of slack)."""
+def _jax_md_search(domain, cutoff, skin, capacity_multiplier):
+    from jax_md import partition
+
     margin = cutoff + skin
-    fns = partition.neighbor_list(
+    return partition.neighbor_list(
         domain.make_displacement(margin),
         domain.search_box(margin),
         r_cutoff=cutoff,
@@ -38,4 +49,16 @@ def make_neighbor_search(domain, cutoff: float, skin: float, capacity_multiplier
         capacity_multiplier=capacity_multiplier,
         format=partition.NeighborListFormat.Dense,
     )
-    return NeighborSearch(fns=fns, cutoff=cutoff, skin=skin)
+
+
+def make_neighbor_search(domain, cutoff: float, skin: float, capacity_multiplier: float = 1.25,
+                         backend: str = "jax_md") -> NeighborSearch:
+    """Cell-list neighbour search over `domain` for pairs closer than `cutoff` (+ `skin` of slack).
+    `backend`: "cell_sort" (sph.cell_list) or "jax_md" (jax-md's cell list)."""
+    if backend == "cell_sort":
+        impl = cell_list.make_cell_list(domain, cutoff, skin, capacity_multiplier)
+    elif backend == "jax_md":
+        impl = _jax_md_search(domain, cutoff, skin, capacity_multiplier)
+    else:
+        raise ValueError(f"numerics.neighbor_search: {backend!r} is not one of {list(BACKENDS)}")
+    return NeighborSearch(impl=impl, cutoff=float(cutoff), skin=float(skin), backend=backend)

@@ -9,59 +9,95 @@ state, so an overflow never produces a wrong step and never loses one.
 checkpointing over segments and per step). `value_and_grad_rollout` differentiates a loss through it
 and never returns a gradient of an overflowed rollout: it checks the overflow flag outside `jit`,
 sizes a list for the whole trajectory (`size_list`) and recomputes.
+
+The step guard (`sph.diagnostics.StepGuard`, `solver.guard`): `make_chunk(..., guard=g)` refuses a
+step after which a fluid particle is outside the domain in a non-periodic dimension, moves faster
+than the guard's speed limit or has a non-finite velocity or density; the chunk then stops with the
+last good state and `advance` raises the guard's diagnosis (`ParticleEscaped`, `BlowUp`), naming the
+step, the particle and its position. `scan_rollout` applies the guard that `solver.step_fn` carries
+(`step_fn.guard`) by default and reports a refused rollout like an overflowed one;
+`value_and_grad_rollout` raises the diagnosis instead of returning that gradient.
 """
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
+from .diagnostics import NeighborOverflow
+
 
 def _select(pred, a, b):
     return jax.tree_util.tree_map(lambda x, y: jnp.where(pred, x, y), a, b)
 
 
-def make_chunk(step_fn, length: int):
-    """chunk(state, nbrs, step0, n_target) -> (state, nbrs, n_done, overflowed)."""
+def make_chunk(step_fn, length: int, guard=None):
+    """chunk(state, nbrs, step0, n_target) -> (state, nbrs, n_done, overflowed).
+
+    With a `guard` (`sph.diagnostics.StepGuard`, e.g. `solver.guard`) a step the guard rejects is
+    not taken either: the chunk stops there with the last good state, n_done < n_target and
+    overflowed false (`advance` raises the guard's diagnosis). The guard rides along as
+    `chunk.guard` (kept by `jax.jit`)."""
 
     def chunk(state, nbrs, step0, n_target):
         def body(carry, _):
-            state, nbrs, n_done, overflow = carry
-            active = (n_done < n_target) & ~overflow
+            state, nbrs, n_done, overflow, stopped = carry
+            active = (n_done < n_target) & ~overflow & ~stopped
             new_state, new_nbrs = step_fn(state, nbrs, step0 + n_done + 1)
             bad = new_nbrs.did_buffer_overflow.astype(bool)
-            take = active & ~bad
+            refused = ~bad & guard.reject(new_state) if guard is not None else jnp.zeros((), bool)
+            take = active & ~bad & ~refused
             state = _select(take, new_state, state)
             nbrs = _select(take, new_nbrs, nbrs)
-            return (state, nbrs, n_done + take.astype(n_done.dtype), overflow | (active & bad)), None
+            return (state, nbrs, n_done + take.astype(n_done.dtype), overflow | (active & bad),
+                    stopped | (active & refused)), None
 
-        init = (state, nbrs, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
-        (state, nbrs, n_done, overflow), _ = jax.lax.scan(body, init, None, length=length)
+        init = (state, nbrs, jnp.zeros((), jnp.int32), jnp.zeros((), bool), jnp.zeros((), bool))
+        (state, nbrs, n_done, overflow, _), _ = jax.lax.scan(body, init, None, length=length)
         return state, nbrs, n_done, overflow
 
+    chunk.guard = guard
     return chunk
 
 
 def advance(chunk, neighbors, state, nbrs, step0: int, n: int, max_reallocations: int = 10):
     """Advance exactly `n` steps from global step `step0` with a jitted `chunk`, re-allocating the
-    neighbour list whenever it overflows. Returns (state, nbrs, n_reallocations)."""
+    neighbour list whenever it overflows. Returns (state, nbrs, n_reallocations).
+
+    A step refused by the chunk's guard raises the guard's diagnosis (a `SimulationError`: the step,
+    the particle, its position, the likely cause; `.state` is the last good state). More than
+    `max_reallocations` overflows in a row raise `NeighborOverflow` (diagnosed by the guard if any)."""
     done_total, reallocs = 0, 0
+    guard = getattr(chunk, "guard", None)
     while done_total < n:
         state, nbrs, done, overflow = chunk(state, nbrs, step0 + done_total, n - done_total)
         done_total += int(done)
         if bool(overflow):
             reallocs += 1
             if reallocs > max_reallocations:
-                raise RuntimeError(f"neighbour list overflowed {reallocs} times in a row near step {step0 + done_total}")
+                why = f"the neighbour list overflowed {reallocs} times in a row"
+                if guard is not None:
+                    raise guard.diagnose(state, nbrs, step0 + done_total + 1, why)
+                raise NeighborOverflow(f"{why} near step {step0 + done_total + 1}: particles are clumping, "
+                                       "typically the start of a blow-up (check numerics.dt / numerics.cfl)",
+                                       step=step0 + done_total + 1, state=state, nbrs=nbrs)
             nbrs = neighbors.allocate(state.r)
+        elif done_total < n:  # the guard refused the next step
+            raise guard.diagnose(state, nbrs, step0 + done_total + 1)
     return state, nbrs, reallocs
 
 
 def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0, segments: int = 0,
-                 remat_steps: bool = False):
+                 remat_steps: bool = False, guard="auto", split: bool = False):
     """Differentiable rollout of `n_steps` (static) with `lax.scan`.
 
     Returns (state, nbrs, overflowed). Use `jax.grad` through it; if `overflowed` is true the result
     is invalid and the caller must re-allocate `nbrs` and redo the rollout.
+
+    `guard` ("auto": `step_fn.guard`, which `solver.step_fn` carries; None: off) flags a rollout in
+    which a fluid particle left the domain, exceeded the speed limit or became non-finite
+    (`sph.diagnostics.StepGuard`); by default that flag is folded into `overflowed` (the result is
+    invalid either way), with `split=True` it is returned apart: (state, nbrs, overflowed, refused).
+    A refused rollout is not cured by a larger list: `value_and_grad_rollout` raises the diagnosis.
 
     `segments` > 0 turns on gradient checkpointing: the steps are split into that many segments of
     ceil(n_steps / segments) steps, each wrapped in `jax.checkpoint`, so the backward pass stores one
@@ -76,27 +112,35 @@ def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0, segments: i
     checkpointing) the gradient memory is about (n_steps / segments + segments) carries plus one
     step's intermediates.
     """
+    if isinstance(guard, str) and guard == "auto":
+        guard = getattr(step_fn, "guard", None)
     step = jax.checkpoint(step_fn, prevent_cse=False) if remat_steps else step_fn
 
     def body(carry, k):
-        state, nbrs, overflow = carry
+        state, nbrs, overflow, refused = carry
         state, nbrs = step(state, nbrs, step0 + k + 1)
-        return (state, nbrs, overflow | nbrs.did_buffer_overflow.astype(bool)), None
+        if guard is not None:
+            refused = refused | jax.lax.stop_gradient(guard.reject(state))
+        return (state, nbrs, overflow | nbrs.did_buffer_overflow.astype(bool), refused), None
 
     def run(carry, ks):
         return jax.lax.scan(body, carry, ks)[0], None
 
-    carry = (state, nbrs, jnp.zeros((), bool))
+    def out(carry):
+        state, nbrs, overflow, refused = carry
+        return (state, nbrs, overflow, refused) if split else (state, nbrs, overflow | refused)
+
+    carry = (state, nbrs, jnp.zeros((), bool), jnp.zeros((), bool))
     if segments <= 0 or segments >= n_steps:
         carry, _ = run(carry, jnp.arange(n_steps))
-        return carry
+        return out(carry)
     seg = -(-n_steps // segments)
     full = n_steps // seg
     run_ckpt = jax.checkpoint(run)
     carry, _ = jax.lax.scan(run_ckpt, carry, jnp.arange(full * seg).reshape(full, seg))
     if full * seg < n_steps:
         carry, _ = run_ckpt(carry, jnp.arange(full * seg, n_steps))
-    return carry
+    return out(carry)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -130,7 +174,8 @@ def rollout_objective(loss_fn, initial_state, step_fn, neighbors, n_steps: int, 
     over `segments`, and per step with `remat_steps`); loss = loss_fn(final state), or
     (loss, aux) = loss_fn(final state) with `has_aux`. `invalid` is true if the list overflowed
     during the rollout, or if it was stale at the initial positions (some particle moved more than
-    skin / 2 from where the list was built, so `initial_state` may have missed pairs).
+    skin / 2 from where the list was built, so `initial_state` may have missed pairs), or if the
+    step guard (`step_fn.guard`) refused a step: an int32 code, 1 for the list, 2 for the guard (3: both).
     Wrap it in `jax.jit(jax.value_and_grad(objective, has_aux=True))`.
     """
 
@@ -139,11 +184,12 @@ def rollout_objective(loss_fn, initial_state, step_fn, neighbors, n_steps: int, 
         checked = neighbors.update(state.r, nbrs)
         stale = jnp.any(checked.reference_position != nbrs.reference_position)
         invalid0 = stale | checked.did_buffer_overflow.astype(bool)
-        state, _, overflowed = scan_rollout(step_fn, state, nbrs, n_steps, step0=step0, segments=segments,
-                                            remat_steps=remat_steps)
+        state, _, overflowed, refused = scan_rollout(step_fn, state, nbrs, n_steps, step0=step0,
+                                                     segments=segments, remat_steps=remat_steps, split=True)
         out = loss_fn(state)
         loss, aux = out if has_aux else (out, None)
-        return loss, (aux, invalid0 | overflowed)
+        code = (invalid0 | overflowed).astype(jnp.int32) + 2 * refused.astype(jnp.int32)
+        return loss, (aux, code)
 
     return objective
 
@@ -242,6 +288,21 @@ def value_and_grad_rollout(loss_fn, solver, n_steps: int, initial_state=None, st
             compiled["next"] = jax.jit(lambda s, nb, k: solver.step_fn(s, nb, k)[0].r)
         return compiled["chunk"], compiled["next"]
 
+    guard = getattr(solver.step_fn, "guard", None)
+
+    def _refused(params, nbrs):
+        """The guard refused a step of the differentiated rollout: find and name it (forward pass)."""
+        state0 = start(params, nbrs)
+        chunk = jax.jit(make_chunk(solver.step_fn, n_steps, guard=guard))
+        try:
+            advance(chunk, solver.neighbors, state0, solver.neighbors.allocate(state0.r), step0, n_steps)
+        except RuntimeError as e:
+            err = type(e)(f"value_and_grad_rollout: no gradient for this rollout: {e}")
+            err.__dict__.update(e.__dict__)
+            return err
+        return RuntimeError("value_and_grad_rollout: the step guard refused a step of the differentiated rollout "
+                            "but not of the forward pass (round-off at the domain edge?); no gradient returned")
+
     def run(params, nbrs=None):
         reallocs = 0
         if nbrs is None:
@@ -250,8 +311,10 @@ def value_and_grad_rollout(loss_fn, solver, n_steps: int, initial_state=None, st
             nbrs = solver.neighbors.allocate(r0)
         while True:
             (loss, (aux, invalid)), grad = value_and_grad(params, nbrs)
-            if not bool(invalid):
+            if not int(invalid):
                 return RolloutGradient(loss, grad, aux, nbrs, reallocs)
+            if int(invalid) & 2:
+                raise _refused(params, nbrs)
             if reallocs >= max_reallocations:
                 raise RuntimeError(
                     f"value_and_grad_rollout: the neighbour list still overflowed (or was stale at the "

@@ -11,9 +11,15 @@ which fills the same cache the calls use, without taking a step): before the loo
 neighbour re-allocation changes the list's capacity. That time is `compile_s`; `wall_s` is the
 solve time of the chunks only, each synchronised with `block_until_ready`, compilation excluded.
 
-If a field becomes NaN/inf (or, with `u_limit`, a fluid speed exceeds it: a finite blow-up), `run`
-raises a RuntimeError naming the step, the time and the first offending particle (found by bisecting
-the chunk from its last good state); the writer keeps the last good frame and its checkpoint.
+Every step is guarded (`solver.guard`, `sph.diagnostics.StepGuard`, on by default): a step after
+which a fluid particle is outside the domain in a non-periodic dimension (`ParticleEscaped`), a
+fluid speed exceeds `u_limit` (default: the artificial sound speed c_ref, a finite blow-up) or a
+velocity or density is non-finite (`BlowUp`) is not taken; the neighbour list overflowing again
+and again is `NeighborOverflow`. `run` then raises that `SimulationError` (a RuntimeError) naming
+the step, the time, the particle, its position and the likely cause (dt against its limits); a bad
+state the guard does not see (another field non-finite) is found at the end of the chunk and
+located by bisecting the chunk from its last good state. The writer keeps the last good frame and
+its checkpoint, and the message says where.
 """
 import time
 from dataclasses import dataclass
@@ -25,9 +31,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from . import diagnostics
+from .diagnostics import SimulationError
 from .io import SERIES
 from .rollout import advance, make_chunk
-from .state import FLUID, ParticleState
+from .state import ParticleState
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +72,7 @@ class _CompiledChunk:
 
     def __init__(self, jitted):
         self.jitted = jitted
+        self.guard = getattr(jitted, "guard", None)  # make_chunk's step guard, for `advance`
         self.seen = set()
         self.compile_s = 0.0
 
@@ -101,7 +109,9 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     A fresh run (`step0 == 0`) records the initial frame first. With a `writer`, frames go to the file
     and the checkpoint is overwritten after each frame; resuming (`step0 > 0`) reads the earlier
     frames back from it. `callback(step, t, state)` is called after every frame (raise in it to stop).
-    `u_limit`: treat a fluid speed above it as a blow-up (e.g. the artificial sound speed).
+    `u_limit`: treat a fluid speed above it as a blow-up; None (default) = the artificial sound
+    speed `solver.c_ref` (a WCSPH flow is meaningless long before Ma = 1); math.inf switches the
+    speed check off (non-finite fields and particles leaving the domain still stop the run).
     """
     if write_every < 1:
         raise ValueError(f"write_every must be >= 1, got {write_every}")
@@ -110,7 +120,10 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
         raise ValueError(f"step0={step0} is outside [0, {n_total}]")
     dt = solver.dt
     rho_ref = solver.scene.material.rho_ref
-    chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every)))
+    if u_limit is None:
+        u_limit = solver.c_ref
+    guard = solver.guard.with_limit(u_limit) if solver.guard is not None else None
+    chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
     diag_fn = jax.jit(partial(diagnostics.summary, rho_ref=rho_ref))
 
     frames = {k: [] for k in SERIES}
@@ -171,7 +184,9 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
                 jax.block_until_ready(new_state)
                 d = {k: v.item() for k, v in diag_fn(new_state).items()}
                 bad, error = _is_bad(d, u_limit), None
-            except RuntimeError as e:  # repeated neighbour overflow, typically a blow-up
+            except SimulationError as e:  # the guard refused a step (diagnosed), or overflow kept recurring
+                raise _with_checkpoint(e, solver, step, writer) from None
+            except RuntimeError as e:  # repeated neighbour overflow without a guard
                 bad, error = True, e
             wall += time.perf_counter() - t0 - (chunk.compile_s - c0)
             if bad:
@@ -198,9 +213,19 @@ def _is_bad(d: dict, u_limit: Optional[float]) -> bool:
     return int(d["first_nonfinite"]) >= 0 or (u_limit is not None and float(d["u_max"]) > u_limit)
 
 
+def _with_checkpoint(err: SimulationError, solver, step: int, writer) -> SimulationError:
+    """`err` with the note where the last good frame (`step`, the start of the chunk) is kept."""
+    if writer is None:
+        return err
+    out = type(err)(f"{err}; the last good frame (step {step}, t={step * solver.dt:.6g}) is kept in the "
+                    f"checkpoint of {writer.path}")
+    out.__dict__.update(err.__dict__)
+    return out
+
+
 def _locate_blowup(solver, chunk, diag_fn, state, nbrs, step, n, writer, error, u_limit) -> RuntimeError:
     """The chunk from the good `state` at `step` went bad within `n` steps: bisect for the first bad
-    step, take it once more unguarded and name the first offending particle."""
+    step, take it once more unguarded and name the first offending particle (`StepGuard.diagnose`)."""
 
     def advance_ok(m):
         try:
@@ -220,23 +245,7 @@ def _locate_blowup(solver, chunk, diag_fn, state, nbrs, step, n, writer, error, 
             lo, good = mid, res
     s_good, nb_good = good
     bad_step = step + lo + 1
-    s_bad, _ = jax.jit(solver.step_fn)(s_good, nb_good, bad_step)
-    where = f"at step {bad_step} (t={bad_step * solver.dt:.6g})"
-    i = int(diagnostics.first_nonfinite(s_bad))
-    speed = np.where(np.asarray(s_bad.tag) == FLUID, np.linalg.norm(np.asarray(s_bad.u), axis=1), 0.0)
-    if i >= 0:
-        msg = (f"simulation blew up {where}: particle {i} has non-finite "
-               f"{', '.join(diagnostics.nonfinite_fields(s_bad, i))} "
-               f"(position before the step {np.asarray(s_good.r[i]).tolist()})")
-    elif u_limit is not None and speed.max() > u_limit:
-        i = int(np.argmax(speed > u_limit))
-        msg = (f"simulation blew up {where}: particle {i} moves at |u| = {speed[i]:.4g} > u_limit = {u_limit:g} "
-               f"(position before the step {np.asarray(s_good.r[i]).tolist()})")
-    else:
-        msg = f"neighbour list kept overflowing {where} although the fields stay finite: {error}"
-    if writer is not None:
-        msg += (f"; the last good frame (step {step}, t={step * solver.dt:.6g}) is kept in the checkpoint of "
-                f"{writer.path}")
-    err = RuntimeError(msg)
+    guard = solver.guard.with_limit(u_limit)
+    err = guard.diagnose(s_good, nb_good, bad_step, why=str(error) if error is not None else "")
     err.__cause__ = error
-    return err
+    return _with_checkpoint(err, solver, step, writer)

@@ -14,7 +14,17 @@ Time integration (one neighbour pass per step), semi-implicit (symplectic) Euler
 Only the declared effects are traced into the step: a scene without TVF carries no TVF terms, one
 without gravity adds no body force, one with summation density never evaluates the continuity sum,
 one without walls has no wall pass, one without heat has no temperature field (state.T is None).
+
+`build_solver` refuses what cannot give a correct result, before anything large is allocated
+(`check_resolution`, `check_memory`): a periodic side shorter than twice the kernel support (a
+particle would meet its own image), a fluid narrower than the support, walls thinner than the
+support, and a run whose particles and neighbour slots cannot fit in the available memory. A fixed
+`numerics.dt` above the stability limits is reported with an `UnstableTimeStep` warning. The
+solver carries a `StepGuard` (`solver.guard`, also `solver.step_fn.guard`) that the rollouts use to
+refuse a step that takes a fluid particle out of the domain or blows up (`sph.diagnostics`).
 """
+import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -25,6 +35,7 @@ import numpy as np
 from . import density, heat, momentum, riemann, walls
 from .config import Numerics
 from .configtools import ConfigError
+from .diagnostics import StepGuard
 from .eos import RiemannEoS, TaitEoS
 from .forces import ConstantForce
 from .kernels import make_kernel
@@ -36,15 +47,120 @@ from .state import ParticleState
 from .timestep import time_step
 
 
+
+class UnstableTimeStep(UserWarning):
+    """A fixed numerics.dt exceeds one of the time-step limits (sph.timestep)."""
+
+
+class InsufficientMemory(ConfigError, MemoryError):
+    """The run would need more memory than is available (estimated before allocating)."""
+
+
+# bytes per neighbour slot that a step needs at least: the int32 index, the pair geometry
+# (dim + 3 floats: dr, |r|, W, dW/dr / r, sph.pairs) and ~4 more floats of pair terms in the physics;
+# measured peak temporaries of a jitted step are 2-4x this (XLA memory_analysis, dx 0.02, 2D)
+def _bytes_per_slot(dim: int, itemsize: int) -> int:
+    return 4 + 1 + (dim + 3 + 4) * itemsize
+
+
+def neighbour_slots(cutoff: float, skin: float, dx: float, dim: int, capacity_multiplier: float) -> int:
+    """Neighbour slots per particle a list allocates: particles within cutoff + skin of a lattice
+    (a disc / ball of that radius over dx^dim), times the capacity multiplier."""
+    rc = (cutoff + skin) / dx
+    ball = math.pi * rc**2 if dim == 2 else (4.0 / 3.0 * math.pi * rc**3 if dim == 3 else 2 * rc)
+    return int(math.ceil(capacity_multiplier * ball))
+
+
+def available_memory() -> tuple:
+    """(bytes available to the arrays of a run, where): the default JAX device's free memory on an
+    accelerator, the host's available memory (psutil) on CPU."""
+    dev = jax.devices()[0]
+    if dev.platform != "cpu":
+        try:
+            stats = dev.memory_stats() or {}
+            if "bytes_limit" in stats:
+                return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0)), f"{dev.platform} device memory"
+        except Exception:  # noqa: BLE001  (memory_stats is optional per backend)
+            pass
+    import psutil
+
+    return int(psutil.virtual_memory().available), "available host memory"
+
+
+def check_memory(n: int, dim: int, slots: int, itemsize: int, where: str, dx: float) -> int:
+    """Raise InsufficientMemory if `n` particles with `slots` neighbour slots each need more than
+    the available memory; returns the estimate (bytes, a lower bound: fields + the list + the pair
+    terms of one step)."""
+    per_particle = (6 * dim + 6) * itemsize + slots * _bytes_per_slot(dim, itemsize)
+    need = n * per_particle
+    avail, what = available_memory()
+    if need > avail:
+        raise InsufficientMemory(
+            f"{where}: {n:,} particles (dx = {dx:g}) with {slots} neighbour slots each need at least "
+            f"{need / 2**30:.3g} GiB (about {per_particle / 1024:.3g} KiB per particle: fields, neighbour list, "
+            f"pair terms), but only {avail / 2**30:.3g} GiB {what} is free: use a larger dx")
+    return need
+
+
+def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numerics) -> None:
+    """Named ConfigErrors for a scene the kernel cannot resolve (see the module docstring):
+
+    periodic side L < 2 cutoff      the minimum image is no longer unique within the support: a
+                                    particle would interact with its own image or twice with a neighbour
+    fluid extent < cutoff           in some dimension the fluid is narrower than the kernel support
+                                    (fewer than cutoff / dx particles across)
+    walls thinner than the support  with walls, a fluid particle closer than `cutoff` to the edge of
+                                    the box in a non-periodic dimension (the wall layers, which lie
+                                    inside the box, do not cover its support: layers * dx < cutoff)
+    """
+    where = f"scene {scene.name}"
+    dx = scene.dx
+    support = (f"the kernel support (cutoff = {cutoff:g} = {cutoff / dx:g} dx with numerics.kernel "
+               f"{numerics.kernel!r}, h_factor {numerics.h_factor:g})")
+    box = np.asarray(scene.domain.box, float)
+    for d, (side, per) in enumerate(zip(box, scene.domain.periodic)):
+        if per and side < 2 * cutoff * (1 - 1e-9):
+            raise ConfigError(
+                f"{where}: dx = {dx:g} is too coarse: the periodic side {d} of length {side:g} is shorter than twice "
+                f"{support}, so a particle would interact with its own periodic image; use dx <= "
+                f"{side / (2 * cutoff / dx):.4g} (at least {math.ceil(2 * cutoff / dx)} particles across)")
+    fluid = scene.r[scene.fluid_mask]
+    extent = fluid.max(axis=0) - fluid.min(axis=0) + dx
+    for d in range(scene.dim):
+        side = box[d] if scene.domain.periodic[d] else extent[d]
+        if side < cutoff * (1 - 1e-9):
+            raise ConfigError(
+                f"{where}: dx = {dx:g} is too coarse: the fluid is {side / dx:.3g} particle(s) ({side:g}) across in "
+                f"dimension {d}, less than {support}; use a smaller dx (at least {math.ceil(cutoff / dx)} particles "
+                f"across)")
+    if scene.effects.walls is not None:
+        for d in range(scene.dim):
+            if scene.domain.periodic[d]:
+                continue
+            gap = np.minimum(fluid[:, d], box[d] - fluid[:, d])
+            i = int(np.argmin(gap))
+            if gap[i] < cutoff * (1 - 1e-6):
+                layers = int(round((gap[i] - 0.5 * dx) / dx))
+                raise ConfigError(
+                    f"{where}: the walls are thinner than {support}: fluid particle {int(np.flatnonzero(scene.fluid_mask)[i])} "
+                    f"at {fluid[i].tolist()} is {gap[i]:.4g} from the edge of the box in dimension {d}, so its support "
+                    f"reaches beyond the wall layers (about {max(layers, 0)} layers of dx; need layers * dx >= cutoff, "
+                    f"i.e. at least {math.ceil(cutoff / dx - 1e-9)} wall layers)")
+
+
 @dataclass(frozen=True, eq=False)
 class Solver:
     """Everything derived from (scene, numerics): constants, neighbour search and the two functions.
 
     init_fn() -> (state, nbrs)
-    step_fn(state, nbrs, step) -> (state, nbrs)     `step` is the number of the step being taken
+    step_fn(state, nbrs, step) -> (state, nbrs)     `step` is the number of the step being taken;
+                                                    carries `step_fn.guard` (= `guard`)
     state_at(r, u, nbrs) -> state                   traceable: the state init_fn builds at positions
                                                     `r`, velocities `u`, with a given neighbour list
     pairs_fn(r, nbrs) -> Pairs                      the pair geometry the step uses
+    c_ref                                           artificial sound speed c_ref_factor * u_ref
+    guard                                           StepGuard (escape, speed limit c_ref, finiteness)
+    memory_estimate                                 bytes a step needs at least (`check_memory`)
     """
 
     scene: Scene
@@ -60,6 +176,9 @@ class Solver:
     step_fn: Callable
     state_at: Callable
     pairs_fn: Callable
+    c_ref: float = float("nan")
+    guard: StepGuard = None
+    memory_estimate: int = 0
 
     def n_steps(self, t_end: float) -> int:
         return int(round(t_end / self.dt))
@@ -89,7 +208,20 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
     limits = time_step(h, c_ref, mat.u_ref, mat.eta, mat.rho_ref, g_max, numerics.cfl, diffusivity)
     dt = numerics.dt if numerics.dt is not None else limits["dt"]
     skin = numerics.skin_factor * scene.dx
-    nsearch = make_neighbor_search(scene.domain, kernel.cutoff, skin, numerics.capacity_multiplier)
+    check_resolution(scene, kernel.cutoff, skin, numerics)
+    memory = check_memory(scene.n, dim, neighbour_slots(kernel.cutoff, skin, scene.dx, dim, numerics.capacity_multiplier),
+                          jnp.dtype(dtype).itemsize, f"scene {scene.name}", scene.dx)
+    if numerics.dt is not None:
+        over = {k: v for k, v in limits.items() if k != "dt" and dt > v * (1 + 1e-9)}
+        if over:
+            k = max(over, key=lambda name: dt / over[name])
+            warnings.warn(
+                f"scene {scene.name}: numerics.dt = {dt:.4g} exceeds the {k} time-step limit {over[k]:.4g} by "
+                f"{dt / over[k]:.3g}x (limits: " + ", ".join(f"{n} {v:.3g}" for n, v in limits.items() if n != "dt")
+                + "); the run is likely to blow up (it is stopped at the first bad step): lower numerics.dt or "
+                "set it to null", UnstableTimeStep, stacklevel=2)
+    nsearch = make_neighbor_search(scene.domain, kernel.cutoff, skin, numerics.capacity_multiplier,
+                                   backend=numerics.neighbor_search)
     margin = kernel.cutoff + skin
     w0 = float(kernel.w(0.0))
     # float32 only: there 1 / sum^2 of a kernel-tail weight sum overflows (walls.fluid_weights);
@@ -212,6 +344,10 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics()) -> Solver:
             T = heat_update(pairs, r, rho, T, state.mass)
         return state.replace(r=r, u=u, v=v, rho=rho, p=p, dudt=dudt, dvdt=dvdt, T=T), nbrs
 
+    guard = StepGuard(box=tuple(float(b) for b in scene.domain.box), periodic=tuple(bool(p) for p in scene.domain.periodic),
+                      u_limit=float(c_ref), c_ref=float(c_ref), dt=float(dt), dt_limits=dict(limits),
+                      fixed_dt=numerics.dt is not None, step_fn=step_fn)
+    step_fn.guard = guard
     return Solver(scene=scene, numerics=numerics, kernel=kernel, eos=eos, dt=float(dt), dt_limits=limits,
                   p_b=p_b, dtype=dtype, neighbors=nsearch, init_fn=init_fn, step_fn=step_fn, state_at=state_at,
-                  pairs_fn=pairs_of)
+                  pairs_fn=pairs_of, c_ref=float(c_ref), guard=guard, memory_estimate=memory)

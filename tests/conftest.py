@@ -12,4 +12,6 @@ for _p in (str(_ROOT), str(_TESTS)):
     if _p not in sys.path:
         sys.path.insert(0, _p)
 
-import sph  # noqa: E402,F401  (switches x64 on before any test creates an array)
+import sph  # noqa: E402,F401
+
+sph.precision.enable_x64()  # tests compare float64 results; sph itself leaves the flag alone

@@ -94,11 +94,11 @@ def test_bad_dtype_and_kernel_through_mapping():
 
 @pytest.mark.parametrize("gravity", [(0.0, 0.0, -9.81), (-9.81,)])
 def test_gravity_with_wrong_dimension_fails_at_build(gravity):
-    scene = tgv.scene(0.25, sph.Material(), sph.Effects(gravity=gravity))  # 2D scene
+    scene = tgv.scene(0.125, sph.Material(), sph.Effects(gravity=gravity))  # 2D scene
     msg = _raises("effects.gravity", sph.build_solver, scene)
     assert str(len(gravity)) in msg
 
 
 def test_gravity_with_right_dimension_builds():
-    solver = sph.build_solver(tgv.scene(0.25, sph.Material(), sph.Effects(gravity=(0.0, -1.0))))
+    solver = sph.build_solver(tgv.scene(0.125, sph.Material(), sph.Effects(gravity=(0.0, -1.0))))
     assert "body_force" in solver.dt_limits

@@ -1,7 +1,8 @@
 """Neighbour search: exact pair sets against brute force, and overflow detection with recovery.
 
-* The cell-list Dense list holds exactly the pairs i != j with |r_ij| < cutoff + skin (minimum image
-  in periodic dimensions only), compared with an O(N^2) numpy search.
+* The Dense list of either backend (sph.cell_list's "cell_sort", jax-md's "jax_md") holds exactly
+  the pairs i != j with |r_ij| < cutoff + skin (minimum image in periodic dimensions only),
+  compared with an O(N^2) numpy search.
 * Between rebuilds (every particle moved < skin / 2) the old list still holds every pair within the
   cutoff (the Verlet-skin guarantee).
 * A list that is too small is detected, the offending step is not taken, the list is re-allocated
@@ -41,13 +42,14 @@ DOMAINS = {
 }
 
 
+@pytest.mark.parametrize("backend", ["cell_sort", "jax_md"])
 @pytest.mark.parametrize("name", list(DOMAINS))
-def test_list_equals_brute_force_pairs(name):
+def test_list_equals_brute_force_pairs(name, backend):
     domain = DOMAINS[name]
     rng = np.random.default_rng(51)
     n = 300
     r = rng.uniform(0.0, 1.0, size=(n, 2)) * np.asarray(domain.box)
-    search = make_neighbor_search(domain, CUTOFF, SKIN)
+    search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
     nbrs = search.allocate(jnp.asarray(r))
     assert not bool(nbrs.did_buffer_overflow)
     listed = _pairs_of_list(nbrs.idx)
@@ -55,7 +57,10 @@ def test_list_equals_brute_force_pairs(name):
     expected = _brute_force_pairs(r, CUTOFF + SKIN, domain)
     assert listed == expected, (f"missing {sorted(expected - listed)[:5]}, "
                                 f"extra {sorted(listed - expected)[:5]}")
-    assert nbrs.cell_list_fn is not None, "meant to exercise the cell-list path"
+    if backend == "jax_md":
+        assert nbrs.cell_list_fn is not None, "meant to exercise the cell-list path"
+    else:
+        assert min(search.impl.n_cells) >= 3, "meant to exercise the 3^dim neighbour-cell path"
     # the list is symmetric; periodic dimensions use the images, non-periodic ones never do
     assert all((j, i) in listed for i, j in listed)
     ii, jj = np.array(sorted(listed)).T
@@ -67,14 +72,15 @@ def test_list_equals_brute_force_pairs(name):
             assert np.all(plain[:, d] < CUTOFF + SKIN), f"a pair wraps around the non-periodic dim {d}"
 
 
+@pytest.mark.parametrize("backend", ["cell_sort", "jax_md"])
 @pytest.mark.parametrize("name", list(DOMAINS))
-def test_verlet_skin_keeps_all_pairs_within_cutoff(name):
+def test_verlet_skin_keeps_all_pairs_within_cutoff(name, backend):
     domain = DOMAINS[name]
     rng = np.random.default_rng(52)
     n = 300
     box = np.asarray(domain.box)
     r = rng.uniform(0.1, 0.9, size=(n, 2)) * box  # keep non-periodic moves inside the box
-    search = make_neighbor_search(domain, CUTOFF, SKIN)
+    search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
     nbrs = search.allocate(jnp.asarray(r))
 
     # small moves (< skin / 2): no rebuild, but every pair within the cutoff is still listed

@@ -43,16 +43,16 @@ import json
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import numpy as np
 import pandas as pd
 
 import sph
-from sph import io
+from sph import io, runs
 from sph.kernels import make_kernel
-from experiments.dambreak2d import settings as S
+try:
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 BUCHNER = S.REFS / "dambreak_pressure_buchner_2002.csv"
 MM_FRONT = S.REFS / "dambreak_front_martin_moyce_1952.csv"
@@ -213,12 +213,15 @@ def evaluate_run(exp: "S.Experiment", column: "S.Column", results) -> dict:
 def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
     """Metrics of every column of the profile -> results/<profile>/dambreak2d/metrics.csv."""
     rows = [evaluate_run(exp, c, results) for c in exp.columns]
-    table = pd.DataFrame(rows)
     path = S.metrics_path(results)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".csv.tmp")
-    table.to_csv(tmp, index=False)
-    tmp.replace(path)
+    table = runs.write_table(path, rows)
+    for c, r in zip(exp.columns, rows):
+        errors = {"density_max": r["density_error_max"]}
+        for k in ("p_rms_smooth", "front_relerr_max", "front_relerr_mean", "height_abserr_max"):
+            if k in r:
+                errors[k] = r[k]
+        folder = S.run_dir(results, c.name, exp.dx)
+        runs.save_record(folder, runs.record(folder, experiment=S.NAME, target="fig8", method=c.name, errors=errors))
     for r in rows:
         msg = (f"{r['column']} dx{r['dx']:g}: density error max {r['density_error_max']:.4f}, "
                f"left tank {r['n_left_tank']}, wall {r['wall_s']:.1f} s")

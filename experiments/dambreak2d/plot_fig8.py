@@ -13,9 +13,6 @@ import shutil
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -26,8 +23,12 @@ import pandas as pd  # noqa: E402
 
 import sph  # noqa: E402
 from sph import io  # noqa: E402
-from experiments.dambreak2d import evaluate as E  # noqa: E402
-from experiments.dambreak2d import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import evaluate as E
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import evaluate as E
+    import settings as S
 
 
 def _draw_tank(ax, exp: "S.Experiment"):

@@ -1,5 +1,7 @@
 # 2D dam break, paper Fig. 8 (experiments/dambreak2d/README.md).
-# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
+# always call their run script (its cache decides what re-runs, see sph.runs) through sph.stamp, whose
+# stamp changes only when an output changed.
 # The runs (one stamp for all columns) depend on the config, settings.py, run.py and the core; run.py
 # itself skips runs whose outputs already match their inputs and resumes interrupted ones. The
 # metrics depend on the runs, evaluate.py and the reference data; the figures on the metrics and
@@ -12,9 +14,8 @@ FIG8_OUT     := $(addprefix $(RESULTS)/fig8/,fig8.png fig8.pdf validation.png va
 
 .PHONY: fig8 dambreak2d
 
-$(DB2D_RUNS): $(DB2D)/config.yaml $(DB2D)/settings.py $(DB2D)/run.py $(CORE) | $(VENV)
-	$(PY) $(DB2D)/run.py --profile $(PROFILE) --results $(RESULTS)
-	@touch $@
+$(DB2D_RUNS): FORCE | $(VENV)
+	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(DB2D)/run.py --profile $(PROFILE) --results $(RESULTS)
 
 $(DB2D_METRICS): $(DB2D_RUNS) $(DB2D)/evaluate.py $(DB2D_REFS)
 	$(PY) $(DB2D)/evaluate.py --profile $(PROFILE) --results $(RESULTS)

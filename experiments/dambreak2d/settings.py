@@ -6,9 +6,10 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
+NAME = HERE.name
 ROOT = HERE.parents[1]
 CONFIG = HERE / "config.yaml"
 REFS = ROOT / "validation_refs"
@@ -24,6 +25,7 @@ class Tank:
     layers: int = 3
 
     def __post_init__(self):
+        require_finite(self, "tank")
         require(self.length > 0, "tank.length", f"must be positive, got {self.length}")
         require(self.height > 0, "tank.height", f"must be positive, got {self.height}")
         require(self.layers >= 1, "tank.layers", f"must be >= 1, got {self.layers}")
@@ -40,6 +42,7 @@ class Column:
     t_end: float
 
     def __post_init__(self):
+        require_finite(self)
         require(self.width > 0, "width", f"must be positive, got {self.width}")
         require(self.height > 0, "height", f"must be positive, got {self.height}")
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
@@ -53,6 +56,7 @@ class Fluid:
     eta: float = 5.0e-5
 
     def __post_init__(self):
+        require_finite(self, "fluid")
         require(self.rho_ref > 0, "fluid.rho_ref", f"must be positive, got {self.rho_ref}")
         require(self.eta >= 0, "fluid.eta", f"must be >= 0, got {self.eta}")
 
@@ -85,6 +89,8 @@ class Experiment:
     connectivity_radius_factor: float = 1.45
 
     def __post_init__(self):
+        require_finite(self)
+        require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
         require(len(self.columns) > 0, "columns", "needs at least one column")
         names = [c.name for c in self.columns]
         for i, n in enumerate(names):
@@ -101,6 +107,12 @@ class Experiment:
         require(fx.gravity is not None and len(fx.gravity) == 2 and fx.gravity[0] == 0 and fx.gravity[1] < 0,
                 "effects.gravity", f"the dam break needs gravity [0, -g] with g > 0, got {fx.gravity}")
         require(fx.walls is not None, "effects.walls", "the tank needs walls: no_slip or free_slip")
+        require(not fx.heat, "effects.heat",
+                "the dam break carries no temperature: this config's `fluid` section has only rho_ref and eta "
+                "(no kappa or c_p) and the tank no thermal boundary; set effects.heat: false "
+                "(heat transfer is the thermal experiment, experiments/thermal)")
+        require(self.connectivity_radius_factor > 0, "connectivity_radius_factor",
+                f"must be positive, got {self.connectivity_radius_factor}")
         require(self.frame_dt > 0, "frame_dt", f"must be positive, got {self.frame_dt}")
         for i, k in enumerate(self.keep):
             require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
@@ -143,8 +155,8 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
 
 # -- paths ----------------------------------------------------------------------------------------
 def out_dir(results) -> Path:
-    """results/<profile>/dambreak2d."""
-    return Path(results) / "dambreak2d"
+    """results/<profile>/<NAME> (dambreak2d for this folder)."""
+    return Path(results) / NAME
 
 
 def run_dir(results, column: str, dx: float) -> Path:

@@ -18,13 +18,9 @@ the lid, 0 at the bottom; v = 0 at the side walls), and over the 15 interior poi
 """
 import argparse
 import dataclasses
-import fcntl
 import json
 import sys
 from pathlib import Path
-
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import h5py
 import numpy as np
@@ -33,9 +29,11 @@ from scipy.spatial import cKDTree
 
 from sph.kernels import make_kernel
 from sph.state import FLUID, MOVING_WALL, WALL
-from experiments.ldc2d import settings as S
+try:
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
-KEY = ["case", "method", "dx", "dtype"]
 REFS = S.ROOT / "validation_refs"
 GHIA_FILES = {"u": "ldc_data_u_vel.csv", "v": "ldc_data_v_vel.csv"}
 
@@ -236,33 +234,6 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     return row
 
 
-def record(exp: "S.Experiment", method: str, dx: float, results) -> dict:
-    """Evaluate one run and upsert its row into metrics.csv (keyed by case, method, dx, dtype)."""
-    row = evaluate(exp, method, dx, results)
-    path = S.metrics_path(results)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.with_suffix(".lock"), "w") as lock:  # runs of one profile may finish concurrently
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        _upsert(exp, path, row)
-    return row
-
-
-def _upsert(exp, path, row):
-    new = pd.DataFrame([row])
-    if path.exists():
-        old = pd.read_csv(path)
-        same = np.ones(len(old), bool)
-        for k in KEY:
-            same &= np.asarray(np.isclose(old[k], row[k]) if k == "dx" else old[k].astype(str) == str(row[k]))
-        new = pd.concat([old[~same], new], ignore_index=True)
-    order = {m.name: i for i, m in enumerate(exp.methods)}
-    new = new.sort_values(["dx", "method"], ascending=[False, True], key=lambda c: c.map(order) if c.name == "method" else c,
-                          ignore_index=True)
-    tmp = path.with_suffix(".csv.tmp")
-    new.to_csv(tmp, index=False)
-    tmp.replace(path)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--profile", default="paper")
@@ -275,7 +246,7 @@ def main(argv=None):
         for m in exp.methods:
             st = io.trajectory_status(S.run_dir(results, m.name, dx) / "traj.h5")
             if st["complete"]:
-                row = record(exp, m.name, dx, results)
+                row = evaluate(exp, m.name, dx, results)
                 print(f"{m.name} {S.dx_tag(dx)}: u_rms {row['u_rms']:.4f} v_rms {row['v_rms']:.4f} "
                       f"(interior {row['u_rms_interior']:.4f} / {row['v_rms_interior']:.4f})")
             else:

@@ -13,9 +13,6 @@ import argparse
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -25,8 +22,12 @@ import pandas as pd  # noqa: E402
 
 from sph import io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
-from experiments.ldc2d import analysis  # noqa: E402
-from experiments.ldc2d import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import analysis
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import analysis
+    import settings as S
 
 COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}
 LABELS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}

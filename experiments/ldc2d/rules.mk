@@ -1,5 +1,7 @@
 # 2D lid-driven cavity, paper Figs. 6-7 (experiments/ldc2d/README.md).
-# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
+# always call their run script (its cache decides what re-runs, see sph.runs) through sph.stamp, whose
+# stamp changes only when an output changed.
 # Each figure has its own runs (fig6: figures.fig6's dx, fig7: figures.fig7's), one stamp per figure.
 # The runs depend on the config, settings.py, run.py and the core, so editing any of these re-runs
 # run.py, which itself skips runs whose trajectories already match their inputs and resumes
@@ -16,15 +18,13 @@ ldc2d_no_background = @for f in $(RESULTS)/ldc2d/logs/*_$(1).pid; do \
 	  [ -f "$$f" ] && kill -0 "$$(cat $$f)" 2>/dev/null && { echo "ldc2d: $(1) runs are still going in the \
 	  background (pid $$(cat $$f), log $${f%.pid}.log); wait for them to finish"; exit 1; }; done; true
 
-$(RESULTS)/ldc2d/fig6_runs.done: $(LDC2D_RUN) | $(VENV)
+$(RESULTS)/ldc2d/fig6_runs.done: FORCE | $(VENV)
 	$(call ldc2d_no_background,fig6)
-	$(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig6 $(LDC2D_FLAGS)
-	@touch $@
+	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig6 $(LDC2D_FLAGS)
 
-$(RESULTS)/ldc2d/fig7_runs.done: $(LDC2D_RUN) | $(VENV)
+$(RESULTS)/ldc2d/fig7_runs.done: FORCE | $(VENV)
 	$(call ldc2d_no_background,fig7)
-	$(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig7 $(LDC2D_FLAGS)
-	@touch $@
+	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig7 $(LDC2D_FLAGS)
 
 fig6-runs: $(RESULTS)/ldc2d/fig6_runs.done
 fig7-runs: $(RESULTS)/ldc2d/fig7_runs.done

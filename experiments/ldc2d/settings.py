@@ -10,9 +10,10 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, from_mapping, load_profile, merge, require, source_hash, to_mapping
+from sph.configtools import digest, from_mapping, load_profile, merge, require, require_finite, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
+NAME = HERE.name
 ROOT = HERE.parents[1]
 CONFIG = HERE / "config.yaml"
 KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
@@ -54,6 +55,7 @@ class Analysis:
     steady_window: float = 5.0
 
     def __post_init__(self):
+        require_finite(self, "analysis")
         require(self.average_frames >= 1, "analysis.average_frames", f"must be >= 1, got {self.average_frames}")
         require(self.velocity in VELOCITIES, "analysis.velocity", f"{self.velocity!r} is not one of {list(VELOCITIES)}")
         require(self.walls in WALL_MODES, "analysis.walls", f"{self.walls!r} is not one of {list(WALL_MODES)}")
@@ -81,6 +83,7 @@ class Experiment:
     ghia_re: int = 100
 
     def __post_init__(self):
+        require_finite(self)
         require(len(self.methods) > 0, "methods", "needs at least one method")
         names = [m.name for m in self.methods]
         for i, n in enumerate(names):
@@ -115,6 +118,8 @@ class Experiment:
                     "'momentum' needs 'momentum_velocity' in keep")
         require(self.analysis.average_frames <= self.frames + 1, "analysis.average_frames",
                 f"must not exceed the number of frames ({self.frames} + 1)")
+        require(self.material.eta > 0, "material.eta",
+                f"must be positive: the cavity's Re = rho_ref lid_velocity / eta needs a viscosity, got {self.material.eta}")
         require(self.ghia_re in (100, 400, 1000, 3200, 5000, 7500, 10000), "ghia_re",
                 f"not a Reynolds number of Ghia's tables, got {self.ghia_re}")
         require(abs(self.re - self.ghia_re) <= 1e-9 * self.ghia_re, "material.eta",
@@ -152,8 +157,8 @@ def dx_tag(dx: float) -> str:
 
 
 def out_dir(results) -> Path:
-    """results/<profile>/ldc2d."""
-    return Path(results) / "ldc2d"
+    """results/<profile>/<NAME> (ldc2d for this folder)."""
+    return Path(results) / NAME
 
 
 def run_dir(results, method: str, dx: float) -> Path:
@@ -170,8 +175,9 @@ def profiles_path(results, method: str, dx: float) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
-    """Hash of the solver sources (sph/**/*.py) and run.py: the code that makes a trajectory."""
-    return source_hash(ROOT, [HERE / "run.py"])
+    """Hash of the code that makes a trajectory: settings.py, run.py and the sph modules they and the
+    solver import (sph.runs.code_fingerprint; docstrings and comments do not count)."""
+    return source_hash(ROOT, [HERE / "settings.py", HERE / "run.py"])
 
 
 def settings_fingerprint(exp: Experiment, method: Method, dx: float) -> str:

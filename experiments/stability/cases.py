@@ -84,14 +84,14 @@ def tgv_positions(case, progress: bool):
     if case.start == "jitter":
         r = jitter(r, case.jitter * dx, case.seed, box=(1.0, 1.0))
         return np.where(r >= 1.0, 0.0, r), {"start": f"lattice + jitter {case.jitter:g} dx"}
-    from experiments.tgv2d import relax as tgv_relax
-    from experiments.tgv2d import settings as tgv_settings
-    exp = tgv_settings.Experiment(methods=(tgv_settings.Method("tvf", sph.Effects(tvf=True)),), dx=(dx,),
-                                  t_end=case.t_end, material=case.material, numerics=case.numerics,
-                                  relaxation=case.relaxation)
-    t0 = time.perf_counter()
-    r, info = tgv_relax.relax(exp, dx, progress)
+    from sph.relax import relax
+
     rl = case.relaxation
+    r = jitter(r, rl.noise_factor * dx, rl.seed, box=(1.0, 1.0))
+    r = np.where(r >= 1.0, 0.0, r)
+    t0 = time.perf_counter()
+    scene = tgv.scene(dx, case.material, sph.Effects(tvf=True), r=r)
+    r, info = relax(scene, case.numerics, rl, progress, desc=f"relax dx{dx:g}")
     how = f"relaxed {rl.steps} steps" + (f" (quench every {rl.quench_every})" if rl.quench_every else "")
     return r, {"start": how, "relax_s": time.perf_counter() - t0,
                "relax_density_error_end": info.get("density_error_end"), "relax_u_max_end": info.get("u_max_end")}

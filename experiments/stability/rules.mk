@@ -1,5 +1,7 @@
 # Stability suite (experiments/stability/README.md): `make stability [PROFILE=smoke]`.
-# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
+# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
+# always call their run script (its cache decides what re-runs, see sph.runs) through sph.stamp, whose
+# stamp changes only when an output changed.
 # The table depends on the config, the scripts, tgv2d's relaxation (used by the long TGV case) and
 # the core, so editing any of these re-runs run.py; run.py itself re-runs only the cases whose
 # inputs (their simulation settings, cases.py, settings.py, tgv2d's relax.py/settings.py, sph/) changed
@@ -12,7 +14,5 @@ STABILITY_OUT := $(RESULTS)/stability
 .PHONY: stability
 stability: $(STABILITY_OUT)/stability.csv $(STABILITY_OUT)/stability.md
 
-$(STABILITY_OUT)/stability.csv $(STABILITY_OUT)/stability.md &: $(STABILITY)/config.yaml $(STABILITY)/settings.py \
-		$(STABILITY)/cases.py $(STABILITY)/run.py experiments/tgv2d/relax.py experiments/tgv2d/settings.py \
-		$(CORE) | $(VENV)
+$(STABILITY_OUT)/stability.csv $(STABILITY_OUT)/stability.md &: FORCE | $(VENV)
 	$(PY) $(STABILITY)/run.py --profile $(PROFILE) --results $(RESULTS) $(STABILITY_FLAGS)

@@ -28,14 +28,15 @@ import sys
 import time
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import numpy as np
 import pandas as pd
 
-from experiments.stability import cases as C
-from experiments.stability import settings as S
+try:
+    from . import cases as C
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import cases as C
+    import settings as S
 
 COLUMNS = ["case", "kind", "method", "setup", "expected", "status", "passed", "as_expected", "failed_checks",
            "criterion", "message", "dx", "n_fluid", "n_particles", "dt", "dt_binding", "t_end", "t_reached",

@@ -12,10 +12,12 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import ConfigError, digest, from_mapping, merge, profile_mapping, require, source_hash, to_mapping
-from experiments.tgv2d.settings import Relaxation
+from sph.configtools import (ConfigError, digest, from_mapping, merge, profile_mapping, require, require_finite,
+                             source_hash, to_mapping)
+from sph.relax import Relaxation
 
 HERE = Path(__file__).resolve().parent
+NAME = HERE.name
 ROOT = HERE.parents[1]
 CONFIG = HERE / "config.yaml"
 KINDS = ("dam_break", "ldc", "tgv", "heat")
@@ -84,6 +86,7 @@ class Case:
     dT: float = 1.0
 
     def __post_init__(self):
+        require_finite(self)
         require(self.kind in KINDS, "kind", f"{self.kind!r} is not one of {KINDS}")
         require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
@@ -160,7 +163,7 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Suite:
 # -- paths ----------------------------------------------------------------------------------------
 def out_dir(results) -> Path:
     """results/<profile>/stability."""
-    return Path(results) / "stability"
+    return Path(results) / NAME
 
 
 def case_dir(results, name: str) -> Path:
@@ -177,11 +180,10 @@ def markdown_path(results) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
-    """Hash of what produces a case's metrics: the solver sources (sph/**/*.py), cases.py,
-    settings.py and tgv2d's relaxation (relax.py, settings.py). run.py (evaluation, table) is left
-    out: it re-evaluates stored metrics and never changes them."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", "cases.py")]
-                       + [ROOT / "experiments" / "tgv2d" / n for n in ("relax.py", "settings.py")])
+    """Hash of what produces a case's metrics: the solver's physics modules and those cases.py
+    imports (sph.relax among them), cases.py and settings.py (sph.runs.code_fingerprint). run.py
+    (evaluation, table) is left out: it re-evaluates stored metrics and never changes them."""
+    return source_hash(ROOT, [HERE / n for n in ("settings.py", "cases.py")])
 
 
 NOT_SIMULATED = ("criteria", "expected", "note")

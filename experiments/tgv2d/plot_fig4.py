@@ -9,9 +9,6 @@ import argparse
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -19,15 +16,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sph import io  # noqa: E402
-from experiments.tgv2d import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 
-def plot(exp: "S.Experiment", results) -> Path:
+def plot(exp: "S.Experiment", results, out=None) -> Path:
     dx = min(exp.dx)
     traj = io.read_trajectory(S.run_dir(results, exp.fig4_method, dx) / "traj.h5")
     if "velocity" not in traj:
         raise SystemExit("fig4 needs the velocity field: add 'velocity' to `keep` in config.yaml")
-    out = Path(results) / "fig4"
+    out = Path(out) if out is not None else Path(results) / "fig4"
     out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.0), constrained_layout=True)
     # marker area in points^2: a square of about one spacing on the ~3.2 in wide unit-square axes
@@ -53,8 +53,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--out", default=None, help="figure folder (default <results>/fig4)")
     args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+    plot(S.load(args.profile), args.results or f"results/{args.profile}", args.out)
 
 
 if __name__ == "__main__":

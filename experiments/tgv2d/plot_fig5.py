@@ -7,12 +7,8 @@ and results/<profile>/fig5/metrics.csv (a copy of the run metrics).
     python experiments/tgv2d/plot_fig5.py --profile smoke [--results results/smoke]
 """
 import argparse
-import shutil
 import sys
 from pathlib import Path
-
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import matplotlib
 
@@ -20,17 +16,20 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph import io  # noqa: E402
+from sph import io, runs  # noqa: E402
 from sph.cases import tgv  # noqa: E402
-from experiments.tgv2d import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}
 LABELS = {"sph": "SPH", "tvf": "TVF", "riemann": "Riemann"}
 STYLES = ["-", "--", ":", "-."]
 
 
-def plot(exp: "S.Experiment", results) -> Path:
-    out = Path(results) / "fig5"
+def plot(exp: "S.Experiment", results, out=None) -> Path:
+    out = Path(out) if out is not None else Path(results) / "fig5"
     out.mkdir(parents=True, exist_ok=True)
     fig, (ax_u, ax_e) = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
     t = np.linspace(0.0, exp.t_end, 200)
@@ -56,7 +55,11 @@ def plot(exp: "S.Experiment", results) -> Path:
     for ext in ("png", "pdf"):
         fig.savefig(out / f"fig5.{ext}", dpi=150)
     plt.close(fig)
-    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
+    table = runs.read_table(S.metrics_path(results))  # an error naming the file when it is damaged
+    if len(table) != len(exp.methods) * len(exp.dx):
+        raise RuntimeError(f"{S.metrics_path(results)}: {len(table)} rows for {len(exp.methods) * len(exp.dx)} runs "
+                           "of the config; re-run experiments/tgv2d/run.py (it rebuilds the table)")
+    table.to_csv(out / "metrics.csv", index=False)
     print(f"fig5 -> {out / 'fig5.png'}, {out / 'metrics.csv'}")
     return out / "fig5.png"
 
@@ -65,8 +68,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--out", default=None, help="figure folder (default <results>/fig5)")
     args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+    plot(S.load(args.profile), args.results or f"results/{args.profile}", args.out)
 
 
 if __name__ == "__main__":

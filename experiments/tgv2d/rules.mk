@@ -1,20 +1,30 @@
 # 2D Taylor-Green vortex, paper Figs. 4-5 (experiments/tgv2d/README.md).
-# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, CORE and exports PYTHONPATH.
-# The runs (one stamp for all of them) depend on the config, the run/relax scripts and the core, so
-# editing any of these re-runs; run.py itself skips runs whose outputs already match their inputs
-# and resumes interrupted ones. The figures depend on the runs and their plot script only, so editing
-# a plot script only re-plots.
-TGV2D      := experiments/tgv2d
-TGV2D_RUNS := $(RESULTS)/tgv2d/runs.done
+# Included by the top-level Makefile (PROFILE, PY, RESULTS, VENV, FORCE). Written for any folder
+# name: a copy of this folder, experiments/my_study, is `make my_study` (runs + both figures into
+# results/<profile>/my_study/), with no edit here. The run step always calls run.py, whose cache
+# (sph.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
+# output did, so the figures re-plot only then, or when their plot script changes.
+_dir := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
+_name := $(notdir $(_dir))
+_runs := $(RESULTS)/$(_name)/runs.done
+_figs := $(if $(filter tgv2d,$(_name)),$(RESULTS),$(RESULTS)/$(_name))
 
-$(TGV2D_RUNS): $(TGV2D)/config.yaml $(TGV2D)/settings.py $(TGV2D)/relax.py $(TGV2D)/run.py $(CORE) | $(VENV)
-	$(PY) $(TGV2D)/run.py --profile $(PROFILE) --results $(RESULTS)
-	@touch $@
+$(_runs): DIR := $(_dir)
+$(_runs): FORCE | $(VENV)
+	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
 
+$(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf: DIR := $(_dir)
+$(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf &: $(_runs) $(_dir)/plot_fig4.py
+	$(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
+
+$(_figs)/fig5/fig5.png $(_figs)/fig5/fig5.pdf $(_figs)/fig5/metrics.csv: DIR := $(_dir)
+$(_figs)/fig5/fig5.png $(_figs)/fig5/fig5.pdf $(_figs)/fig5/metrics.csv &: $(_runs) $(_dir)/plot_fig5.py
+	$(PY) $(DIR)/plot_fig5.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
+
+.PHONY: $(_name)
+$(_name): $(_figs)/fig4/fig4.png $(_figs)/fig5/fig5.png
+
+ifeq ($(_name),tgv2d)
 fig4: $(RESULTS)/fig4/fig4.png $(RESULTS)/fig4/fig4.pdf
-$(RESULTS)/fig4/fig4.png $(RESULTS)/fig4/fig4.pdf &: $(TGV2D_RUNS) $(TGV2D)/plot_fig4.py
-	$(PY) $(TGV2D)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS)
-
 fig5: $(RESULTS)/fig5/fig5.png $(RESULTS)/fig5/fig5.pdf $(RESULTS)/fig5/metrics.csv
-$(RESULTS)/fig5/fig5.png $(RESULTS)/fig5/fig5.pdf $(RESULTS)/fig5/metrics.csv &: $(TGV2D_RUNS) $(TGV2D)/plot_fig5.py
-	$(PY) $(TGV2D)/plot_fig5.py --profile $(PROFILE) --results $(RESULTS)
+endif

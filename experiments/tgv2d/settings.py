@@ -5,10 +5,13 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
+NAME = HERE.name
+"""The experiment's name is its folder's: results go to results/<profile>/<NAME>."""
 CONFIG = HERE / "config.yaml"
 KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
 
@@ -19,34 +22,6 @@ class Method:
 
     name: str
     effects: sph.Effects = field(default_factory=sph.Effects)
-
-
-@dataclass(frozen=True)
-class Relaxation:
-    """Particle relaxation before the run (JAX-SPH's 'rlx' mode): a jittered lattice at rest,
-    advanced with TVF and an EoS background pressure until the particles are evenly spread.
-
-    steps         number of relaxation steps
-    p_bg_factor   EoS background pressure / p_ref during relaxation
-    noise_factor  standard deviation of the Gaussian lattice jitter / dx
-    seed          seed of the jitter
-    quench_every  set the velocity to zero every this many steps (0 = never, JAX-SPH's choice); the
-                  quench removes the kinetic energy the relaxation keeps sloshing around, so the
-                  particles settle instead of still moving at u_max ~ 0.025 after 5000 steps
-    """
-
-    steps: int = 5000
-    p_bg_factor: float = 0.02
-    noise_factor: float = 0.25
-    seed: int = 123
-    quench_every: int = 0
-
-    def __post_init__(self):
-        require(self.steps >= 0, "relaxation.steps", f"must be >= 0, got {self.steps}")
-        require(self.noise_factor >= 0, "relaxation.noise_factor", f"must be >= 0, got {self.noise_factor}")
-        require(self.quench_every >= 0, "relaxation.quench_every", f"must be >= 0, got {self.quench_every}")
-        require(not self.quench_every or self.steps % self.quench_every == 0, "relaxation.quench_every",
-                f"must divide relaxation.steps ({self.steps}), got {self.quench_every}")
 
 
 @dataclass(frozen=True)
@@ -67,6 +42,7 @@ class Experiment:
     fig4_method: str = "tvf"
 
     def __post_init__(self):
+        require_finite(self)
         require(len(self.methods) > 0, "methods", "needs at least one method")
         names = [m.name for m in self.methods]
         for i, n in enumerate(names):
@@ -76,7 +52,14 @@ class Experiment:
             require(dx > 0 and abs(1.0 / dx - round(1.0 / dx)) < 1e-6, f"dx[{i}]",
                     f"must divide the unit square into whole cells (1/dx integer), got {dx}")
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
+        require(self.material.eta > 0, "material.eta",
+                "must be positive: the Taylor-Green reference decay exp(-8 pi^2 t / Re) and Re = rho_ref u_ref / eta "
+                f"need a viscosity, got {self.material.eta}")
         require(self.frames >= 1, "frames", f"must be >= 1, got {self.frames}")
+        for i, t in enumerate(self.eval_times):
+            require(t >= 0, f"eval_times[{i}]", f"must be >= 0, got {t}")
+        require(self.connectivity_radius_factor > 0, "connectivity_radius_factor",
+                f"must be positive, got {self.connectivity_radius_factor}")
         for i, k in enumerate(self.keep):
             require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
         require(self.fig4_method in names, "fig4_method", f"{self.fig4_method!r} is not one of the methods {names}")
@@ -101,8 +84,8 @@ def dx_tag(dx: float) -> str:
 
 
 def out_dir(results) -> Path:
-    """results/<profile>/tgv2d."""
-    return Path(results) / "tgv2d"
+    """results/<profile>/<NAME> (tgv2d for this folder)."""
+    return Path(results) / NAME
 
 
 def run_dir(results, method: str, dx: float) -> Path:
@@ -120,7 +103,7 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
     """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])
+    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])  # + sph.relax via relax.py
 
 
 def relax_fingerprint(exp: Experiment, dx: float) -> str:

@@ -13,9 +13,6 @@ import argparse
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -23,7 +20,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from experiments.thermal import settings as S  # noqa: E402
+try:  # noqa: E402
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 
 def plot(exp: "S.Experiment", results) -> dict:

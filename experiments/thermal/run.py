@@ -25,25 +25,23 @@ import sys
 import time
 from pathlib import Path
 
-if __package__ in (None, ""):  # run as a script: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
 import sph
-from sph import heat, io, simulate
+from sph import heat, io, runs, simulate
 from sph.cases import channel
 from sph.configtools import to_mapping
 from sph.domain import Domain
 from sph.lattice import cartesian
 from sph.scene import Scene
 from sph.state import FLUID
-from experiments.thermal import settings as S
-
-KEY = ["case", "dx", "dtype"]
+try:
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+    import settings as S
 
 
 def init_state(solver: sph.Solver):
@@ -52,26 +50,6 @@ def init_state(solver: sph.Solver):
     r = jnp.asarray(solver.scene.r, solver.dtype)
     nbrs = solver.neighbors.allocate(r)
     return jax.jit(solver.state_at)(r, jnp.asarray(solver.scene.u, solver.dtype), nbrs), nbrs
-
-
-def write_every_for(n_steps: int, frames: int) -> int:
-    """Steps per frame so that about `frames` frames follow t = 0."""
-    return max(1, int(round(n_steps / frames)))
-
-
-def _upsert(path: Path, row: dict, sort=("dx",)) -> None:
-    new = pd.DataFrame([row])
-    if path.exists():
-        old = pd.read_csv(path)
-        same = np.ones(len(old), bool)
-        for k in KEY:
-            same &= np.asarray(np.isclose(old[k], row[k]) if k == "dx" else old[k].astype(str) == str(row[k]))
-        new = pd.concat([old[~same], new], ignore_index=True)
-    new = new.sort_values(list(sort), ascending=False, ignore_index=True)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".csv.tmp")
-    new.to_csv(tmp, index=False)
-    tmp.replace(path)
 
 
 def _is_current(folder: Path, fp: str, *files: str) -> bool:
@@ -111,7 +89,7 @@ def run_sine(exp: "S.Experiment", dx: float, results, progress: bool = True) -> 
     state, nbrs = init_state(solver)
     r0 = np.asarray(state.r)
     n_steps = solver.n_steps(d.t_end)
-    write_every = write_every_for(n_steps, d.frames)
+    write_every = runs.write_every_for(n_steps, d.frames)
     frames = {"time": [0.0], "amplitude": [sine_amplitude(state.r, state.T, d)],
               "u_max": [float(jnp.max(jnp.linalg.norm(state.u, axis=1)))]}
 
@@ -132,7 +110,7 @@ def run_sine(exp: "S.Experiment", dx: float, results, progress: bool = True) -> 
     io.write_metadata(folder / "metadata.json", {
         "case": "heat_sine", "dx": dx, "dt": solver.dt, "dt_limits": solver.dt_limits, "n_steps": res.step_end,
         "n_particles": solver.scene.n, "write_every": write_every, "wall_s": res.wall_s,
-        "compile_s": res.compile_s, "displacement_max": float(np.max(np.abs(disp))),
+        "compile_s": res.compile_s, "peak_rss_mb": runs.peak_rss_mb(), "displacement_max": float(np.max(np.abs(disp))),
         "diffusion": to_mapping(d), "fingerprint": fp})
     row = record_sine(exp, dx, results)
     print(f"sine {S.dx_tag(dx)}: {res.n_steps} steps of {solver.scene.n} particles in {res.wall_s:.2f} s, "
@@ -169,8 +147,22 @@ def sine_row(exp: "S.Experiment", dx: float, results) -> dict:
 
 
 def record_sine(exp, dx, results) -> dict:
+    """The row of one sine run; sine_metrics.csv is rebuilt from every current run of the config."""
     row = sine_row(exp, dx, results)
-    _upsert(S.out_dir(results) / "sine_metrics.csv", row)
+    rows = [sine_row(exp, x, results) for x in exp.diffusion.dx
+            if _is_current(S.sine_dir(results, x), S.sine_fingerprint(exp.diffusion, x), "series.csv")]
+    runs.write_table(S.out_dir(results) / "sine_metrics.csv", rows, sort=["dx"], ascending=False)
+    folder = S.sine_dir(results, dx)
+    meta = runs.read_metadata(folder / "metadata.json")
+    runs.save_record(folder, {**{k: np.nan for k in runs.RECORD_COLUMNS},
+                              "experiment": S.NAME, "target": "heat-validation", "method": "heat", "effects": "heat",
+                              "kernel": exp.diffusion.numerics.kernel, "dx": dx, "dim": 2,
+                              "dtype": exp.diffusion.numerics.dtype, "n_particles": row["n_particles"],
+                              "n_steps": row["n_steps"], "dt": row["dt"], "t_end": row["t_end"],
+                              "wall_s": row["wall_s"], "compile_s": row["compile_s"],
+                              "ms_per_step": row["ms_per_step"], "peak_rss_mb": meta.get("peak_rss_mb", np.nan),
+                              "err_decay_rate": abs(row["decay_rate_relerr"]),
+                              "err_amplitude_tend": abs(row["amplitude_relerr_tend"])})
     return row
 
 
@@ -270,7 +262,7 @@ def run_channel(exp: "S.Experiment", results, progress: bool = True, callback=No
     state, nbrs = init_state(solver)
     probe = ChannelProbe(solver, c)
     n_steps = solver.n_steps(c.t_end)
-    write_every = write_every_for(n_steps, c.frames)
+    write_every = runs.write_every_for(n_steps, c.frames)
     frames = {"time": [], "r": [], "T": [], "u": []}
     series = []
 
@@ -345,8 +337,9 @@ def channel_row(exp: "S.Experiment", results) -> dict:
 
 
 def record_channel(exp, results) -> dict:
+    """The channel's row; channel_metrics.csv holds exactly the current config's channel run."""
     row = channel_row(exp, results)
-    _upsert(S.out_dir(results) / "channel_metrics.csv", row)
+    runs.write_table(S.out_dir(results) / "channel_metrics.csv", [row])
     return row
 
 
@@ -370,8 +363,9 @@ def main(argv=None):
     ap.add_argument("--dx", nargs="*", type=float, default=None, help="sine: spacings to run (default: all)")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
-    run_all(S.load(args.profile), args.results or f"results/{args.profile}", args.task, args.dx,
-            not args.no_progress)
+    exp = S.load(args.profile)
+    dxs = runs.select("--dx", args.dx, list(exp.diffusion.dx))
+    run_all(exp, args.results or f"results/{args.profile}", args.task, dxs, not args.no_progress)
 
 
 if __name__ == "__main__":

@@ -12,17 +12,20 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
 
 HERE = Path(__file__).resolve().parent
+NAME = HERE.name
 ROOT = HERE.parents[1]
 CONFIG = HERE / "config.yaml"
 THERMAL_MATERIAL = sph.Material(rho_ref=1.0, eta=0.01, u_ref=1.0, kappa=7.313, c_p=305.27)
 
 
 def _whole_cells(length: float, dx: float) -> bool:
+    if not dx > 0:
+        return False
     n = length / dx
-    return dx > 0 and round(n) >= 1 and abs(n - round(n)) < 1e-6
+    return round(n) >= 1 and abs(n - round(n)) < 1e-6
 
 
 def _needs_heat_material(mat: sph.Material, where: str):
@@ -54,6 +57,7 @@ class Diffusion:
     target_relerr: float = 0.01
 
     def __post_init__(self):
+        require_finite(self, "diffusion")
         require(len(self.dx) > 0, "diffusion.dx", "needs at least one spacing")
         for i, dx in enumerate(self.dx):
             require(_whole_cells(1.0, dx), f"diffusion.dx[{i}]",
@@ -103,6 +107,10 @@ class Channel:
     max_principle_tol: float = 1e-9
 
     def __post_init__(self):
+        require_finite(self, "channel")
+        require(self.material.eta > 0, "channel.material.eta",
+                "must be positive: the channel's laminar reference (Poiseuille start-up, u_bulk = g H^2 / (12 nu)) "
+                f"needs a viscosity, got {self.material.eta}")
         fx = self.effects
         require(fx.heat, "channel.effects.heat", "the hot channel needs effects.heat: true")
         require(fx.walls is not None, "channel.effects.walls", "the channel needs walls (no_slip)")
@@ -157,7 +165,7 @@ def dx_tag(dx: float) -> str:
 
 def out_dir(results) -> Path:
     """results/<profile>/thermal: the runs and the combined metrics."""
-    return Path(results) / "thermal"
+    return Path(results) / NAME
 
 
 def sine_dir(results, dx: float) -> Path:

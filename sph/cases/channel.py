@@ -19,7 +19,7 @@ import numpy as np
 from ..config import Effects, Material
 from ..domain import Domain
 from ..heat import TemperatureZone
-from ..lattice import cartesian
+from ..lattice import cartesian, check_run_size, count
 from ..scene import Scene
 from ..state import FLUID, WALL
 
@@ -61,6 +61,7 @@ def scene(dx: float, material: Material, effects: Effects, length: float = 1.0, 
     if layers < 1:
         raise ValueError(f"channel: needs at least one wall layer, got layers = {layers}")
     off = offset(dx, layers)
+    check_run_size(count([0.0, 0.0], [length, height + 2 * off], dx), dx, f"scene {name}")
     fluid = cartesian([0.0, off], [length, off + height], dx)
     if noise_factor > 0:
         rng = np.random.default_rng(seed)

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..config import Effects, Material
 from ..domain import Domain
-from ..lattice import cartesian, wall_layers
+from ..lattice import cartesian, check_run_size, count, wall_layers
 from ..scene import Scene
 from ..state import FLUID, MOVING_WALL, WALL
 
@@ -17,6 +17,7 @@ def scene(dx: float, material: Material, effects: Effects, layers: int = 3, lid_
           name: str = "ldc2d") -> Scene:
     off = layers * dx
     lo, hi = np.array([off, off]), np.array([off + 1.0, off + 1.0])
+    check_run_size(count(lo - off, hi + off, dx), dx, f"scene {name}")
     fluid = cartesian(lo, hi, dx)
     wall, normal = wall_layers(lo, hi, dx, layers)
     lid = wall[:, 1] > hi[1]

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..config import Effects, Material
 from ..domain import Domain
-from ..lattice import cartesian, wall_layers
+from ..lattice import cartesian, check_run_size, count, wall_layers
 from ..scene import Scene
 from ..state import FLUID, WALL, ParticleState
 
@@ -18,8 +18,10 @@ from ..state import FLUID, WALL, ParticleState
 def scene(dx: float, material: Material, effects: Effects, width: float, height: float, tank_length: float,
           tank_height: float, layers: int = 3, name: str = "tank") -> Scene:
     off = layers * dx
-    fluid = cartesian([off, off], [off + width, off + height], dx)
     lo, hi = np.array([off, off]), np.array([off + tank_length, off + tank_height])
+    check_run_size(count([off, off], [off + width, off + height], dx) + count(lo - off, hi + off, dx)
+                   - count(lo, hi, dx), dx, f"scene {name}")
+    fluid = cartesian([off, off], [off + width, off + height], dx)
     wall, normal = wall_layers(lo, hi, dx, layers)
     r = np.concatenate([fluid, wall])
     tag = np.concatenate([np.full(len(fluid), FLUID), np.full(len(wall), WALL)]).astype(np.int32)

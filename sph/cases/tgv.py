@@ -8,7 +8,7 @@ import numpy as np
 
 from ..config import Effects, Material
 from ..domain import Domain
-from ..lattice import cartesian
+from ..lattice import cartesian, check_run_size, count
 from ..scene import Scene
 from ..state import FLUID
 
@@ -30,6 +30,7 @@ def e_kin_exact(t, re: float):
 def scene(dx: float, material: Material, effects: Effects, r=None, name: str = "tgv2d") -> Scene:
     """TGV scene on the unit square; `r` overrides the lattice (e.g. relaxed positions)."""
     if r is None:
+        check_run_size(count([0.0, 0.0], [1.0, 1.0], dx), dx, f"scene {name}")
         r = cartesian([0.0, 0.0], [1.0, 1.0], dx)
     r = np.asarray(r, dtype=float)
     return Scene(name=name, dx=dx, domain=Domain(box=(1.0, 1.0), periodic=(True, True)), material=material,

@@ -1,0 +1,14 @@
+# Benchmarks of the neighbour search and of the solver against JAX-SPH (what each measures: the
+# docstrings of bench/bench_scaling.py, bench/bench_peer.py, bench/bench_neighbors.py). Included by the top-level Makefile,
+# which defines PY, VENV and exports PYTHONPATH. Always re-run (timings, not products).
+.PHONY: scaling bench-peer bench-neighbors
+
+scaling: | $(VENV)
+	nice $(PY) bench/bench_scaling.py --out results/bench
+
+# JAX-SPH 0.1.0 lives in the LagrangeBench environment
+bench-peer: | $(VENV) .venv-lb/.stamp
+	nice .venv-lb/bin/python bench/bench_peer.py --out results/bench
+
+bench-neighbors: | $(VENV)
+	nice $(PY) bench/bench_neighbors.py

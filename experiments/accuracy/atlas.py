@@ -1,0 +1,190 @@
+"""The accuracy-cost atlas: every run record of a results folder side by side.
+
+Reads (never re-runs) the run records (record.json, sph.runs) of the TGV sweep (run.py) and of the
+experiments in `gather` (cavity: Figs. 6-7, dam break: Fig. 8, heat-operator validation), plus the
+gradient check's metrics (gradcheck/: AD vs FD error against AD time). Writes, into
+results/<profile>/accuracy/:
+
+  runs.csv          every run record found (one schema: sph.runs.RECORD_COLUMNS + err_<name>)
+  accuracy.png/pdf  one panel per problem: error against wall time (log-log), a marker per method,
+                    the Pareto front (the runs no other run beats in both error and time) drawn
+  convergence.png   per problem: error against dx with the least-squares order per method, and wall
+                    time against particle count with the fitted exponent
+  accuracy.md       per problem and error level the cheapest run that reaches it, and the orders
+
+    python experiments/accuracy/atlas.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+
+
+try:  # noqa: E402
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path
+    import settings as S
+
+PROBLEMS = {  # problem -> (experiment of its records, error column, what the error is)
+    "Taylor-Green 2D": ("tgv2d", None, "time-averaged |u_max / exact - 1|"),
+    "lid-driven cavity": ("ldc2d", "err_ghia_rms", "RMS deviation from Ghia (u, v)"),
+    "dam break": ("dambreak2d", "err_front_relerr_max", "max. surge-front error vs Martin & Moyce"),
+    "heat operator": ("thermal", "err_decay_rate", "|decay rate / exact - 1|"),
+    "gradients": ("gradcheck", "err_rel_l2", "||g_AD - g_FD|| / ||g_FD||"),
+}
+
+
+def gather(atlas: "S.Atlas", results) -> pd.DataFrame:
+    """Every record.json below the sweep folder and the gathered experiments' folders, + gradcheck."""
+    results = Path(results)
+    roots = [S.out_dir(results)] + [results / g for g in atlas.gather if g != "gradcheck"]
+    rows = []
+    for root in roots:
+        for p in sorted(root.rglob("record.json")) if root.exists() else []:
+            rec = json.loads(p.read_text())
+            rec["folder"] = str(p.parent.relative_to(results))
+            rows.append(rec)
+    grad = results / "gradcheck" / "metrics.csv"
+    if grad.exists():
+        for _, g in pd.read_csv(grad).iterrows():
+            rows.append({"experiment": "gradcheck", "target": "fig1", "method": f"AD {g['case']}",
+                         "effects": "", "kernel": "", "dx": g["dx"], "dim": 2, "dtype": g["dtype"],
+                         "n_particles": g["n_particles"], "n_steps": g["loss_steps"], "dt": g["dt"],
+                         "wall_s": g["ad_s"], "compile_s": g["ad_compile_s"], "err_rel_l2": g["rel_l2"],
+                         "folder": "gradcheck"})
+    return pd.DataFrame(rows)
+
+
+def problem_table(runs: pd.DataFrame, atlas: "S.Atlas", name: str) -> pd.DataFrame:
+    """The runs of one problem with columns label, error, wall_s, dx, n_particles."""
+    exp, col, _ = PROBLEMS[name]
+    col = col or f"err_{atlas.tgv.error}"
+    if runs.empty or col not in runs:
+        return pd.DataFrame(columns=["label", "error", "wall_s", "dx", "n_particles"])
+    t = runs[(runs["experiment"] == exp) & runs[col].notna()].copy()
+    t["error"] = t[col].abs()
+    kern = t["kernel"].fillna("").astype(str)
+    t["label"] = t["method"].astype(str) + np.where(kern != "", " " + kern, "") + " " + t["dtype"].astype(str)
+    return t[t["error"] > 0].reset_index(drop=True)
+
+
+def pareto(t: pd.DataFrame) -> pd.DataFrame:
+    """Runs not beaten in both error and wall time by any other run, by increasing time."""
+    t = t.sort_values(["wall_s", "error"])
+    best, keep = np.inf, []
+    for i, r in t.iterrows():
+        if r["error"] < best:
+            keep.append(i)
+            best = r["error"]
+    return t.loc[keep]
+
+
+def fitted_order(x, y) -> float:
+    """Least-squares slope of log y against log x (nan with fewer than two distinct x)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = (x > 0) & (y > 0) & np.isfinite(x) & np.isfinite(y)
+    if len(np.unique(x[ok])) < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0])
+
+
+def plot_accuracy(tables: dict, out: Path):
+    names = [n for n, t in tables.items() if len(t)]
+    fig, axes = plt.subplots(1, max(1, len(names)), figsize=(4.6 * max(1, len(names)), 4.0), squeeze=False,
+                             constrained_layout=True)
+    for ax, name in zip(axes[0], names):
+        t = tables[name]
+        for k, (label, g) in enumerate(t.groupby("label")):
+            ax.loglog(g["wall_s"], g["error"], "os^vDP*X<>"[k % 10], ls="none", label=label, alpha=0.8)
+        p = pareto(t)
+        ax.loglog(p["wall_s"], p["error"], "k-", lw=1, alpha=0.6, label="Pareto front")
+        ax.set(title=name, xlabel="wall time of the run [s]", ylabel=PROBLEMS[name][2])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6)
+    for ext in ("png", "pdf"):
+        fig.savefig(out / f"accuracy.{ext}", dpi=130)
+    plt.close(fig)
+
+
+def plot_convergence(tables: dict, out: Path) -> dict:
+    """Error vs dx and wall time vs N per problem and label; returns {problem: {label: (order, exponent)}}."""
+    names = [n for n, t in tables.items() if len(t) and n != "gradients"]
+    fig, axes = plt.subplots(2, max(1, len(names)), figsize=(4.6 * max(1, len(names)), 7.5), squeeze=False,
+                             constrained_layout=True)
+    fits = {}
+    for j, name in enumerate(names):
+        t = tables[name]
+        fits[name] = {}
+        for label, g in t.groupby("label"):
+            order = fitted_order(g["dx"], g["error"])
+            expo = fitted_order(g["n_particles"], g["wall_s"])
+            fits[name][label] = (order, expo)
+            g = g.sort_values("dx")
+            axes[0, j].loglog(g["dx"], g["error"], "o-", label=f"{label}: order {order:.2f}")
+            axes[1, j].loglog(g["n_particles"], g["wall_s"], "o-", label=f"{label}: N^{expo:.2f}")
+        axes[0, j].set(title=name, xlabel="dx", ylabel="error")
+        axes[1, j].set(xlabel="particles N", ylabel="wall time [s]")
+        for ax in axes[:, j]:
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=6)
+    fig.savefig(out / "convergence.png", dpi=130)
+    plt.close(fig)
+    return fits
+
+
+def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
+    lines = ["# Accuracy-cost atlas", "",
+             "Cheapest run (wall time of the solve, compilation excluded) that reaches each error level, "
+             "per problem; `-` where no run of the atlas reaches it.", ""]
+    for name, t in tables.items():
+        lines += [f"## {name}", "", f"error: {PROBLEMS[name][2]}; {len(t)} runs", ""]
+        if not len(t):
+            lines += ["no run records found (run its experiment first)", ""]
+            continue
+        lines += ["| error level | cheapest run | dx | particles | error | wall time [s] |", "|---|---|---|---|---|---|"]
+        for lv in atlas.levels:
+            ok = t[t["error"] <= lv]
+            if ok.empty:
+                lines.append(f"| {lv:g} | - | | | | |")
+                continue
+            r = ok.loc[ok["wall_s"].idxmin()]
+            lines.append(f"| {lv:g} | {r['label']} | {r['dx']:g} | {int(r['n_particles'])} | {r['error']:.3g} | "
+                         f"{r['wall_s']:.3g} |")
+        if name in fits:
+            lines += ["", "| run family | observed order in dx | wall time ~ N^k |", "|---|---|---|"]
+            for label, (o, e) in sorted(fits[name].items()):
+                lines.append(f"| {label} | {o:.2f} | {e:.2f} |")
+        lines.append("")
+    (out / "accuracy.md").write_text("\n".join(lines) + "\n")
+
+
+def build(atlas: "S.Atlas", results) -> Path:
+    out = S.out_dir(results)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = gather(atlas, results)
+    runs.to_csv(out / "runs.csv", index=False)
+    tables = {name: problem_table(runs, atlas, name) for name in PROBLEMS}
+    plot_accuracy(tables, out)
+    fits = plot_convergence(tables, out)
+    write_md(atlas, tables, fits, out)
+    print(f"accuracy: {len(runs)} run records -> {out}/runs.csv, accuracy.png, convergence.png, accuracy.md")
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    args = ap.parse_args(argv)
+    build(S.load(args.profile), args.results or f"results/{args.profile}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""The TGV sweep of the accuracy-cost atlas: every method x dx x dtype x kernel of the profile, each
+(kernel, dtype) as one experiments/tgv2d experiment run with tgv2d's own code (cached, resumable:
+sph.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
+the other problems of the atlas (cavity, dam break, heat) are not run here: atlas.py reads the run
+records their own experiments wrote.
+
+    python experiments/accuracy/run.py --profile smoke [--results results/smoke]
+"""
+import argparse
+import time
+
+from experiments.tgv2d import run as tgv_run
+from experiments.tgv2d import settings as tgv_settings
+
+from sph.configtools import ConfigError, to_mapping
+
+try:
+    from . import settings as S
+except ImportError:  # run as a script: its folder is on sys.path
+    import settings as S
+
+
+def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> "tgv_settings.Experiment":
+    """The tgv2d experiment of one (kernel, dtype) of the sweep, validated as tgv2d's own config."""
+    sw = atlas.tgv
+    base = tgv_settings.load(sw.base_profile)
+    names = [m.name for m in base.methods]
+    for i, m in enumerate(sw.methods):
+        if m not in names:
+            raise ConfigError(f"tgv.methods[{i}]: {m!r} is not a method of tgv2d's {sw.base_profile!r} "
+                              f"profile ({names})")
+    methods = [{"name": m.name, "effects": to_mapping(m.effects)} for m in base.methods
+               if m.name in sw.methods]
+    return tgv_settings.load(sw.base_profile, overrides={
+        "numerics": {"kernel": kernel, "dtype": dtype}, "methods": methods, "dx": list(sw.dx),
+        "t_end": sw.t_end, "frames": sw.frames, "eval_times": [sw.t_end / 2, sw.t_end]})
+
+
+def run_sweep(atlas: "S.Atlas", results, progress: bool = True) -> int:
+    t0 = time.perf_counter()
+    n = 0
+    for kernel in atlas.tgv.kernels:
+        for dtype in atlas.tgv.dtypes:
+            exp = tgv_experiment(atlas, kernel, dtype)
+            print(f"accuracy: TGV sweep, kernel {kernel}, {dtype}", flush=True)
+            n += len(tgv_run.run_all(exp, S.tgv_results(results, kernel, dtype), progress=progress))
+    print(f"accuracy: {n} TGV runs in {time.perf_counter() - t0:.1f} s", flush=True)
+    return n
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--no-progress", action="store_true")
+    args = ap.parse_args(argv)
+    run_sweep(S.load(args.profile), args.results or f"results/{args.profile}", not args.no_progress)
+
+
+if __name__ == "__main__":
+    main()

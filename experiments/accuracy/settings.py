@@ -1,0 +1,71 @@
+"""Settings of the accuracy-cost atlas: config.yaml -> frozen, validated dataclasses, and paths."""
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from sph.configtools import load_profile, require
+from sph.config import Numerics
+from sph.kernels import KERNELS
+from sph.precision import DTYPES
+
+HERE = Path(__file__).resolve().parent
+NAME = HERE.name
+CONFIG = HERE / "config.yaml"
+
+
+@dataclass(frozen=True)
+class TgvSweep:
+    """The TGV sweep: every method x dx x dtype x kernel, run with experiments/tgv2d.
+
+    base_profile  profile of experiments/tgv2d/config.yaml supplying material, numerics, relaxation
+    error         the err_<name> column of the TGV records that the atlas plots
+    """
+
+    methods: tuple[str, ...]
+    dx: tuple[float, ...]
+    dtypes: tuple[str, ...] = ("float64",)
+    kernels: tuple[str, ...] = ("quintic",)
+    t_end: float = 2.0
+    frames: int = 50
+    base_profile: str = "paper"
+    error: str = "u_max_mean"
+
+    def __post_init__(self):
+        require(len(self.methods) > 0, "tgv.methods", "needs at least one method")
+        require(len(self.dx) > 0, "tgv.dx", "needs at least one spacing")
+        for i, d in enumerate(self.dtypes):
+            require(d in DTYPES, f"tgv.dtypes[{i}]", f"{d!r} is not one of {sorted(DTYPES)}")
+        for i, k in enumerate(self.kernels):
+            require(k in KERNELS, f"tgv.kernels[{i}]", f"{k!r} is not one of {sorted(KERNELS)}")
+        require(bool(np.isfinite(self.t_end)) and self.t_end > 0, "tgv.t_end", f"must be finite and positive, got {self.t_end}")
+        require(self.frames >= 1, "tgv.frames", f"must be >= 1, got {self.frames}")
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """One profile of the atlas (see config.yaml)."""
+
+    tgv: TgvSweep
+    gather: tuple[str, ...] = ()
+    levels: tuple[float, ...] = (0.1, 0.03, 0.01, 0.003)
+
+    def __post_init__(self):
+        for i, lv in enumerate(self.levels):
+            require(bool(np.isfinite(lv)) and lv > 0, f"levels[{i}]", f"must be a positive error level, got {lv}")
+        for i, g in enumerate(self.gather):
+            require((HERE.parent / g).is_dir(), f"gather[{i}]", f"{g!r} is not a folder of experiments/")
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Atlas:
+    return load_profile(Atlas, path, profile, overrides)
+
+
+def out_dir(results) -> Path:
+    return Path(results) / NAME
+
+
+def tgv_results(results, kernel: str, dtype: str) -> Path:
+    """The results root of one (kernel, dtype) tgv2d experiment of the sweep."""
+    return out_dir(results) / "tgv" / f"{kernel}_{dtype}"

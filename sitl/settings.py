@@ -1,0 +1,263 @@
+"""Settings of the Solver-in-the-Loop experiment (Toshev et al. 2024, Sec. 5 / App. B, Fig. 3,
+Table 1): sitl/config.yaml -> frozen, validated dataclasses, paths and fingerprints.
+
+Sections of a profile: `data` (the RPF 2D dataset our solver generates), `model` (GNS / SitL
+architecture), `train` (LagrangeBench Trainer settings), `eval` (test-set inference) and `fig3`.
+An unknown or mistyped key fails with a message naming it (e.g. ``profiles.smoke.train.stpes``).
+"""
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import sph
+from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.relax import Relaxation
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+CONFIG = HERE / "config.yaml"
+MODELS = ("solver", "gns", "sitl")
+"""Table 1's columns: the SPH solver alone at the coarse step, LagrangeBench's GNS, and SitL."""
+
+
+@dataclass(frozen=True)
+class Data:
+    """The RPF 2D dataset (LagrangeBench layout).
+
+    dx, nu, g          spacing, kinematic viscosity, body-force magnitude (box 1 x 2)
+    c_ref_factor       c_ref = c_ref_factor * u_ref (u_ref = 1)
+    p_bg_factor        Tait background pressure / p_ref of the data run (and of SitL's solver)
+    dt                 SPH time step of the data run (null: the CFL limit)
+    write_every        SPH steps per stored frame: frame interval = dt * write_every
+    t_discard          simulated time before the first stored frame (start-up transient)
+    frames             stored frames per split: train, valid, test (cut from one trajectory per seed,
+                       in this order, LagrangeBench's 2:1:1)
+    seeds              independent trajectories (relaxation seeds seed0 .. seed0 + seeds - 1), run as
+                       one vmapped program sharded across devices; group k of each split = seed k
+    relaxation         TVF relaxation at rest (sph.Relaxation; its seed is seed0)
+    dtype              precision of the data run (stored positions are float32)
+    connectivity_radius_factor   default_connectivity_radius / dx (LagrangeBench: 1.45)
+    profile_tol        validation: max |u_data - u_exact| / u_max over the first window of train
+    profile_window     frames in that window
+    capacity_multiplier  neighbour slots of the data run relative to the current maximum
+    """
+
+    dx: float
+    dt: Optional[float] = None
+    write_every: int = 20
+    t_discard: float = 0.0
+    frames: tuple[int, ...] = (200, 100, 100)
+    seeds: int = 1
+    nu: float = 0.1
+    g: float = 1.0
+    c_ref_factor: float = 10.0
+    p_bg_factor: float = 0.05
+    relaxation: Relaxation = field(default_factory=lambda: Relaxation(steps=1000, p_bg_factor=0.02,
+                                                                      noise_factor=0.1, seed=0,
+                                                                      quench_every=100))
+    dtype: str = "float64"
+    connectivity_radius_factor: float = 1.45
+    profile_tol: float = 0.05
+    profile_window: int = 10
+    capacity_multiplier: float = 1.25
+
+    def __post_init__(self):
+        for key, side in (("dx", 1.0), ("dx", 2.0)):
+            n = side / self.dx
+            require(self.dx > 0 and abs(n - round(n)) < 1e-6, f"data.{key}",
+                    f"must divide the 1 x 2 box into whole cells, got {self.dx}")
+        require(self.dt is None or self.dt > 0, "data.dt", f"must be positive or null, got {self.dt}")
+        require(self.write_every >= 1, "data.write_every", f"must be >= 1, got {self.write_every}")
+        require(self.t_discard >= 0, "data.t_discard", f"must be >= 0, got {self.t_discard}")
+        require(len(self.frames) == 3, "data.frames", f"needs 3 entries (train, valid, test), got {self.frames}")
+        for i, n in enumerate(self.frames):
+            require(n >= 3, f"data.frames[{i}]", f"needs at least 3 frames, got {n}")
+        require(self.seeds >= 1, "data.seeds", f"must be >= 1, got {self.seeds}")
+        require(self.nu > 0, "data.nu", f"must be positive, got {self.nu}")
+        require(self.dtype in ("float32", "float64"), "data.dtype", f"{self.dtype!r} is not float32 or float64")
+        require(self.profile_tol > 0, "data.profile_tol", f"must be positive, got {self.profile_tol}")
+        require(2 <= self.profile_window <= self.frames[0], "data.profile_window",
+                f"must be in [2, frames[0] = {self.frames[0]}], got {self.profile_window}")
+        require(self.connectivity_radius_factor > 0, "data.connectivity_radius_factor", "must be positive")
+
+    @property
+    def material(self) -> sph.Material:
+        return sph.Material(rho_ref=1.0, eta=self.nu, u_ref=1.0)
+
+    def numerics(self, dt=None, dtype=None, p_bg_factor=None) -> sph.Numerics:
+        """Standard SPH of the data run (quintic kernel, h = dx, summation density, Tait gamma 1)."""
+        return sph.Numerics(kernel="quintic", h_factor=1.0, c_ref_factor=self.c_ref_factor, gamma=1.0,
+                            p_bg_factor=self.p_bg_factor if p_bg_factor is None else p_bg_factor,
+                            dt=self.dt if dt is None else dt, dtype=dtype or self.dtype,
+                            capacity_multiplier=self.capacity_multiplier)
+
+    @property
+    def n_particles(self) -> int:
+        return int(round(1.0 / self.dx)) * int(round(2.0 / self.dx))
+
+
+@dataclass(frozen=True)
+class Model:
+    """GNS (LagrangeBench) and the SitL corrector share this architecture (paper App. B).
+
+    latent_dim, num_mlp_layers, num_mp_steps   GNS width, MLP depth, message-passing layers
+    substeps           SitL: SPH substeps L of dt_frame / L per coarse step (paper Listing 1: 3)
+    input_seq_length   positions per input (2 = one velocity)
+    capacity_multiplier  SitL's in-model neighbour lists (SPH and graph), relative to the training
+                       data's maximum; an overflow is never silent (NaN output, state['overflow'])
+    """
+
+    latent_dim: int = 64
+    num_mlp_layers: int = 2
+    num_mp_steps: int = 10
+    substeps: int = 3
+    input_seq_length: int = 2
+    capacity_multiplier: float = 1.5
+
+    def __post_init__(self):
+        require(self.latent_dim >= 1, "model.latent_dim", "must be >= 1")
+        require(self.num_mlp_layers >= 1, "model.num_mlp_layers", "must be >= 1")
+        require(self.num_mp_steps >= 1, "model.num_mp_steps", "must be >= 1")
+        require(self.substeps >= 1, "model.substeps", f"must be >= 1, got {self.substeps}")
+        require(self.input_seq_length == 2, "model.input_seq_length",
+                "SitL starts from one velocity: only 2 is supported")
+        require(self.capacity_multiplier >= 1, "model.capacity_multiplier", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class Train:
+    """LagrangeBench Trainer settings (no pushforward, as in the paper).
+
+    step_max           training steps per model
+    lr_start, lr_final, lr_decay_steps, lr_decay_rate   exponential decay (LagrangeBench's optax)
+    noise_std          GNS random-walk input noise
+    eval_steps         validate (20-step MSE on `eval_n_trajs` valid rollouts) and checkpoint
+    log_steps          print the training loss
+    seed               model init, noise and data-loader seed
+    dtype              precision of the networks and the in-model solver
+    """
+
+    step_max: int = 1000
+    lr_start: float = 5e-4
+    lr_final: float = 1e-6
+    lr_decay_steps: float = 1e5
+    lr_decay_rate: float = 0.1
+    noise_std: float = 3e-4
+    eval_steps: int = 500
+    log_steps: int = 100
+    eval_n_trajs: int = 5
+    seed: int = 0
+    dtype: str = "float32"
+    num_workers: int = 0
+
+    def __post_init__(self):
+        require(self.step_max >= 1, "train.step_max", "must be >= 1")
+        require(0 < self.lr_final <= self.lr_start, "train.lr_final", "must be in (0, lr_start]")
+        require(self.noise_std >= 0, "train.noise_std", "must be >= 0")
+        require(1 <= self.eval_steps <= self.step_max, "train.eval_steps", "must be in [1, step_max]")
+        require(self.log_steps >= 1, "train.log_steps", "must be >= 1")
+        require(self.eval_n_trajs >= 1, "train.eval_n_trajs", "must be >= 1")
+        require(self.dtype in ("float32", "float64"), "train.dtype", f"{self.dtype!r} is not float32 or float64")
+
+
+@dataclass(frozen=True)
+class Eval:
+    """Test-set inference (LagrangeBench `infer`): `n_rollout_steps` = 20 gives MSE_20.
+
+    n_trajs            test rollouts (-1: all 20-step windows of the test split)
+    metrics_stride     stride of e_kin and sinkhorn along the rollout
+    batch_size         rollouts evaluated together
+    """
+
+    n_rollout_steps: int = 20
+    n_trajs: int = -1
+    metrics_stride: int = 1
+    batch_size: int = 1
+
+    def __post_init__(self):
+        require(self.n_rollout_steps >= 5, "eval.n_rollout_steps", "must be >= 5 (MSE_5 is reported)")
+        require(self.n_trajs == -1 or self.n_trajs >= 1, "eval.n_trajs", "must be -1 or >= 1")
+        require(self.metrics_stride >= 1, "eval.metrics_stride", "must be >= 1")
+        require(self.batch_size >= 1, "eval.batch_size", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class Fig3:
+    """Fig. 3: velocity magnitude of the test rollout `rollout` at these coarse steps."""
+
+    stamps: tuple[int, ...] = (0, 5, 10, 20)
+    rollout: int = 0
+
+    def __post_init__(self):
+        require(len(self.stamps) >= 1 and all(s >= 0 for s in self.stamps), "fig3.stamps",
+                "needs non-negative coarse-step indices")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    data: Data
+    model: Model = field(default_factory=Model)
+    train: Train = field(default_factory=Train)
+    eval: Eval = field(default_factory=Eval)
+    fig3: Fig3 = field(default_factory=Fig3)
+    models: tuple[str, ...] = MODELS
+
+    def __post_init__(self):
+        for i, m in enumerate(self.models):
+            require(m in MODELS, f"models[{i}]", f"{m!r} is not one of {list(MODELS)}")
+        windows = self.data.frames[2] // (self.model.input_seq_length + self.eval.n_rollout_steps)
+        require(windows >= 1, "data.frames[2]", f"the test split needs at least input_seq_length + "
+                f"eval.n_rollout_steps = {self.model.input_seq_length + self.eval.n_rollout_steps} frames")
+        require(self.data.frames[1] // (self.model.input_seq_length + self.eval.n_rollout_steps)
+                >= self.train.eval_n_trajs, "train.eval_n_trajs",
+                "exceeds the 22-frame windows of the valid split (raise data.frames[1])")
+        require(max(self.fig3.stamps) <= self.eval.n_rollout_steps, "fig3.stamps",
+                f"must be <= eval.n_rollout_steps = {self.eval.n_rollout_steps}")
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
+    return load_profile(Experiment, path, profile, overrides)
+
+
+# -- paths and fingerprints -------------------------------------------------------------------------
+def out_dir(results) -> Path:
+    return Path(results) / "sitl"
+
+
+def data_dir(results) -> Path:
+    """LagrangeBench-style name: 2D_RPF_<N>_<frames>every<write_every> is set in metadata; the folder
+    itself is fixed so that make rules can name it."""
+    return out_dir(results) / "data" / "2D_RPF"
+
+
+def ckpt_dir(results, model: str) -> Path:
+    return out_dir(results) / "ckp" / model
+
+
+def metrics_path(results, model: str) -> Path:
+    return out_dir(results) / "metrics" / f"{model}.json"
+
+
+def rollout_dir(results, model: str) -> Path:
+    return out_dir(results) / "rollouts" / model
+
+
+def data_config_digest(exp: Experiment) -> str:
+    """The dataset's configuration alone (no code)."""
+    return digest({"data": to_mapping(exp.data)})
+
+
+def data_fingerprint(exp: Experiment) -> str:
+    """Configuration + generator + core solver code: a dataset is regenerated when this changes."""
+    return digest({"data": to_mapping(exp.data),
+                   "code": source_hash(ROOT, [HERE / "generate.py", HERE / "settings.py"])})
+
+
+def train_fingerprint(exp: Experiment, model: str, metadata_text: str) -> str:
+    """A training run is continued / reused while this matches: the dataset (its configuration and
+    its metadata.json, i.e. its statistics), the model and training settings and the SitL code. The
+    core's source is deliberately not part of it, so that a core edit that leaves the data unchanged
+    does not throw away hours of training."""
+    code = digest([(HERE / f).read_text() for f in ("model.py", "train.py", "common.py")])
+    return digest({"data": data_config_digest(exp), "metadata": metadata_text, "model": to_mapping(exp.model),
+                   "train": to_mapping(exp.train), "name": model, "code": code})

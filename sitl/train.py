@@ -1,0 +1,113 @@
+"""Train GNS or SitL on the generated RPF 2D dataset with LagrangeBench's Trainer (paper App. B:
+10 message-passing layers, latent 64, 2 MLP layers, one input velocity, no pushforward, the best
+checkpoint by the 20-step validation MSE).
+
+Checkpoints go to results/<profile>/sitl/ckp/<model>/ (LagrangeBench's layout: the latest
+checkpoint there, the best in best/). A killed run continues from its latest checkpoint (written
+every train.eval_steps); train.json records the fingerprint (config + code + dataset) and marks a
+finished run, so a finished training of the same inputs is not repeated. "solver" has no weights
+and is never trained.
+
+    .venv-lb/bin/python sitl/train.py --profile smoke --model sitl
+"""
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from sitl import common as C  # noqa: E402  (sets up LagrangeBench first)
+
+import jax  # noqa: E402
+from lagrangebench import Trainer  # noqa: E402
+
+from sitl import generate  # noqa: E402
+from sitl import model as M  # noqa: E402
+from sitl import settings as S  # noqa: E402
+
+
+def trainer_configs(exp: S.Experiment, run_name: str):
+    t = exp.train
+    cfg_train = {
+        "batch_size": 1, "step_max": t.step_max, "num_workers": t.num_workers, "noise_std": t.noise_std,
+        "optimizer": {"lr_start": t.lr_start, "lr_final": t.lr_final, "lr_decay_rate": t.lr_decay_rate,
+                      "lr_decay_steps": t.lr_decay_steps},
+        "pushforward": {"steps": [-1], "unrolls": [0], "probs": [1]},
+        "loss_weight": {"acc": 1.0, "vel": 0.0, "pos": 0.0},
+    }
+    cfg_eval = {
+        "n_rollout_steps": exp.eval.n_rollout_steps, "test": False, "rollout_dir": None,
+        # LagrangeBench 0.2.0 sizes the *training* loader with eval.train.batch_size
+        "train": {"n_trajs": t.eval_n_trajs, "metrics_stride": 10, "batch_size": 1, "metrics": ["mse"],
+                  "out_type": "none"},
+        "infer": {"batch_size": 1},
+    }
+    cfg_logging = {"log_steps": t.log_steps, "eval_steps": t.eval_steps, "wandb": False, "run_name": run_name}
+    return cfg_train, cfg_eval, cfg_logging
+
+
+def train(exp: S.Experiment, results, kind: str) -> dict:
+    if kind == "solver":
+        return {"model": kind, "trained": False}
+    path = generate.ready(exp, results)
+    ckp = S.ckpt_dir(results, kind)
+    side = ckp / "train.json"
+    fp = S.train_fingerprint(exp, kind, (path / "metadata.json").read_text())
+    record = json.loads(side.read_text()) if side.exists() else {}
+    if record.get("fingerprint") != fp:
+        if ckp.exists():
+            print(f"train {kind}: inputs changed, starting afresh in {ckp}", flush=True)
+            shutil.rmtree(ckp)
+        record = {"fingerprint": fp, "model": kind, "wall_s": 0.0, "segments": []}
+    elif record.get("complete"):
+        print(f"train {kind}: up to date ({ckp})", flush=True)
+        return record
+    ckp.mkdir(parents=True, exist_ok=True)
+    side.write_text(json.dumps(record, indent=2) + "\n")
+
+    data_train, data_valid, _ = C.datasets(exp, path)
+    case = C.case(exp, data_train)
+    model = C.model(exp, kind, data_train, case)
+    cfg_train, cfg_eval, cfg_logging = trainer_configs(exp, f"{kind}_{data_train.name}")
+    trainer = Trainer(model, case, data_train, data_valid, cfg_train=cfg_train, cfg_eval=cfg_eval,
+                      cfg_logging=cfg_logging, input_seq_length=exp.model.input_seq_length, seed=exp.train.seed)
+    resume = (ckp / "params_tree.pkl").exists()
+    step0 = json.loads((ckp / "metadata_ckp.json").read_text())["step"] if resume else 0
+    print(f"train {kind}: {'resuming at step ' + str(step0) if resume else 'from scratch'}, "
+          f"step_max {exp.train.step_max}, {len(data_train)} training samples", flush=True)
+    t0 = time.perf_counter()
+    params, state, _ = trainer.train(step_max=exp.train.step_max, store_ckp=str(ckp),
+                                     load_ckp=str(ckp) if resume else None)
+    jax.block_until_ready(params)
+    wall = time.perf_counter() - t0
+    n_over = M.overflowed(state)
+    if n_over:
+        raise RuntimeError(f"train {kind}: SitL's in-model neighbour lists overflowed in {n_over} forward passes "
+                           "(their outputs were NaN); raise model.capacity_multiplier")
+    best = json.loads((ckp / "best" / "metadata_ckp.json").read_text())
+    record["segments"].append({"from_step": step0, "to_step": exp.train.step_max, "wall_s": wall})
+    record.update(wall_s=record["wall_s"] + wall, complete=True, step_max=exp.train.step_max,
+                  best_step=best["step"], best_val_mse20=best["loss"],
+                  s_per_step=wall / max(1, exp.train.step_max - step0))
+    side.write_text(json.dumps(record, indent=2) + "\n")
+    print(f"train {kind}: done in {wall:.0f} s ({record['s_per_step']:.3f} s/step); best val MSE_20 "
+          f"{best['loss']:.3g} at step {best['step']}", flush=True)
+    return record
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None)
+    ap.add_argument("--model", required=True, choices=S.MODELS)
+    args = ap.parse_args(argv)
+    exp = S.load(args.profile)
+    train(exp, args.results or f"results/{args.profile}", args.model)
+
+
+if __name__ == "__main__":
+    main()

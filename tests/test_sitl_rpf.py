@@ -1,0 +1,96 @@
+"""The reverse Poiseuille flow scene (sph/cases/rpf.py) and the dataset's force.py: the force has
+the right sign at every particle (the authors' solver gave all particles one force), and the
+analytical start-up profile tends to the steady one."""
+import importlib.util
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sph
+from sph.cases import rpf
+from sitl import generate
+from sitl import settings as S
+
+
+def _expected_sign(r):
+    return np.where(r[:, 1] < 1.0, 1.0, -1.0)
+
+
+def test_rpf_force_has_the_right_sign_per_particle():
+    """Every particle of a 1 x 2 scene gets +g below y = 1 and -g above, through the solver's
+    acceleration (du/dt with the force minus without equals the per-particle force)."""
+    dx = 0.1
+    mat = sph.Material(eta=0.1)
+    sc = rpf.scene(dx, mat, sph.Effects(), g=1.0)
+    f = np.asarray(sc.body_force(jnp.asarray(sc.r)))
+    sign = _expected_sign(sc.r)
+    assert (sign > 0).sum() == (sign < 0).sum() == sc.n // 2
+    np.testing.assert_array_equal(f[:, 0], sign)
+    np.testing.assert_array_equal(f[:, 1], 0.0)
+    with_force = sph.build_solver(sc, sph.Numerics(dtype="float64")).init_fn()[0].dudt
+    no_force = sph.build_solver(rpf.scene(dx, mat, sph.Effects(), g=0.0), sph.Numerics(dtype="float64")).init_fn()[0].dudt
+    np.testing.assert_allclose(np.asarray(with_force - no_force), f, atol=1e-12)
+
+
+def test_force_py_is_per_particle(tmp_path):
+    """The dataset's force.py maps ONE position (dim,) to its force, as LagrangeBench's features
+    vmap it; applied to each particle it gives the sign of its half."""
+    (tmp_path / "force.py").write_text(generate.FORCE_PY.format(g=1.0, split=1.0))
+    spec = importlib.util.spec_from_file_location("force_module", tmp_path / "force.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    r = np.array([[0.3, 0.2], [0.7, 0.99], [0.1, 1.0], [0.5, 1.7]])
+    for ri, s in zip(r, _expected_sign(r)):
+        out = np.asarray(mod.force_fn(jnp.asarray(ri)))
+        assert out.shape == (2,)
+        np.testing.assert_array_equal(out, [s, 0.0])
+    import jax
+    np.testing.assert_array_equal(np.asarray(jax.vmap(mod.force_fn)(jnp.asarray(r)))[:, 0], _expected_sign(r))
+
+
+def test_startup_profile_tends_to_the_steady_one():
+    g, nu = 1.0, 0.1
+    y = np.linspace(0.0, 2.0, 81)
+    steady = rpf.u_steady(y, g, nu)
+    assert rpf.u_steady(0.5, g, nu) == pytest.approx(g / (8 * nu))
+    assert rpf.u_steady(1.5, g, nu) == pytest.approx(-g / (8 * nu))
+    np.testing.assert_allclose(rpf.u_startup(y, 50.0, g, nu), steady, atol=1e-5)
+    np.testing.assert_allclose(rpf.u_startup(y, 0.0, g, nu), 0.0, atol=1e-12)
+    # early on the fluid accelerates at g away from the split: u ~ g t in the bulk
+    assert rpf.u_startup(np.array([0.5]), 0.01, g, nu)[0] == pytest.approx(0.01, rel=1e-3)
+
+
+def test_settings_validate_profiles():
+    for p in ("smoke", "cpu", "paper"):
+        exp = S.load(p)
+        assert exp.models == ("solver", "gns", "sitl")
+    with pytest.raises(sph.ConfigError, match="data.frames"):
+        S.load("smoke", overrides={"data": {"frames": [40, 44]}})
+    with pytest.raises(sph.ConfigError, match="stpes"):
+        S.load("smoke", overrides={"train": {"stpes": 3}})
+
+
+def test_metadata_and_stats(tmp_path):
+    """metadata.json keys LagrangeBench reads, frame interval dt * write_every, and the statistics
+    in per-frame displacement units across the periodic boundary."""
+    exp = S.load("smoke", overrides={"data": {"frames": [8, 8, 8], "profile_window": 3},
+                                     "eval": {"n_rollout_steps": 5, "n_trajs": 1}, "fig3": {"stamps": [0, 5]},
+                                     "train": {"eval_n_trajs": 1}})
+    n = exp.data.n_particles
+    rng = np.random.default_rng(0)
+    base = rng.uniform(0, 1, (1, 1, n, 2)) * np.array([1.0, 2.0])
+    steps = np.arange(24)[None, :, None, None] * np.array([0.01, 0.0])
+    pos = np.mod(base + steps, np.array([1.0, 2.0])).astype(np.float32)
+    info = {"dt": 0.002, "steps": 100}
+    meta = generate.write(tmp_path, exp, pos, np.arange(24) * 0.02, info)
+    assert json.loads((tmp_path / "metadata.json").read_text()) == meta
+    assert meta["dt"] * meta["write_every"] == pytest.approx(0.02)
+    assert meta["periodic_boundary_conditions"] == [True, True]
+    assert meta["bounds"] == [[0.0, 1.0], [0.0, 2.0]]
+    assert meta["default_connectivity_radius"] == pytest.approx(1.45 * exp.data.dx)
+    assert meta["num_particles_max"] == n
+    np.testing.assert_allclose(meta["vel_mean"], [0.01, 0.0], atol=1e-6)   # wraps are undone
+    np.testing.assert_allclose(meta["vel_std"], [0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(meta["acc_mean"], [0.0, 0.0], atol=1e-6)
