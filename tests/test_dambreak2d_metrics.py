@@ -109,7 +109,7 @@ def test_config_profiles_load():
 
 
 @pytest.mark.parametrize("override, key", [
-    ({"sensor_hieght": 0.2}, "profiles.smoke.sensor_hieght: unknown key"),
+    ({"sensor_hieght": 0.2}, "sensor_hieght: unknown key"),
     ({"effects": {"gravity": None}}, "effects.gravity"),
     ({"effects": {"walls": None}}, "effects.walls"),
     ({"columns": [{"name": "tall", "width": 2.01, "height": 1.0, "t_end": 1.0}]}, "columns[0].width"),

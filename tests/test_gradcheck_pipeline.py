@@ -105,11 +105,11 @@ def test_unchanged_check_is_skipped(done, capsys):
 
 
 @pytest.mark.parametrize("override, key", [
-    ({"loss_step": 5}, "profiles.smoke.loss_step"),
-    ({"eps_factor": 3e-3}, "profiles.smoke.sweep_eps_factors"),
-    ({"cases": [{"name": "ldc", "kind": "ldc"}]}, "profiles.smoke.cases[0].effects.walls"),
-    ({"growth": {"steps": [30, 1]}}, "profiles.smoke.growth.steps"),
-    ({"dtypes": ["float32"], "fig1_dtypes": []}, "profiles.smoke.dtypes"),
+    ({"loss_step": 5}, "loss_step"),
+    ({"eps_factor": 3e-3}, "sweep_eps_factors"),
+    ({"cases": [{"name": "ldc", "kind": "ldc"}]}, "cases[0].effects.walls"),
+    ({"growth": {"steps": [30, 1]}}, "growth.steps"),
+    ({"dtypes": ["float32"], "fig1_dtypes": []}, "dtypes"),
 ])
 def test_config_errors_name_the_key(override, key):
     with pytest.raises(ConfigError, match=key.replace("[", r"\[").replace("]", r"\]")):

@@ -116,7 +116,7 @@ def test_overflowing_neighbour_list_is_reallocated(exp, finished):
 
 
 def test_bad_config_key_is_named():
-    with pytest.raises(ConfigError, match=r"profiles\.smoke\.iteratons: unknown key"):
+    with pytest.raises(ConfigError, match=r"iteratons: unknown key"):
         S.load("smoke", overrides={"iteratons": 3})
     with pytest.raises(ConfigError, match=r"optimizers\[0\]\.kind"):
         S.load("smoke", overrides={"optimizers": [{"name": "gd", "kind": "lbfgs", "learning_rate": 1.0}]})

@@ -147,7 +147,7 @@ def test_fingerprint_follows_simulation_settings_only(suite):
 
 
 def test_bad_config_key_is_named():
-    with pytest.raises(ConfigError, match=r"profiles\.smoke\.cases\.heat_sine\.t_edn: unknown key"):
+    with pytest.raises(ConfigError, match=r"cases\.heat_sine\.t_edn: unknown key"):
         S.load("smoke", overrides={"cases": {"heat_sine": {"t_edn": 1.0}}})
-    with pytest.raises(ConfigError, match=r"profiles\.smoke\.cases\.ldc_tvf\.effects\.walls"):
+    with pytest.raises(ConfigError, match=r"cases\.ldc_tvf\.effects\.walls"):
         S.load("smoke", overrides={"cases": {"ldc_tvf": {"effects": {"walls": None}}}})
