@@ -20,6 +20,7 @@ comments. Editing a docstring, `sph/io.py`, a plot script or another experiment 
 editing `sph/momentum.py` re-runs every run whose solver imports it.
 """
 import ast
+import functools
 import hashlib
 import json
 import resource
@@ -109,7 +110,16 @@ def sph_closure(modules: Iterable[str]) -> list:
 def code_fingerprint(files: Iterable = (), modules: Iterable[str] = ()) -> str:
     """Cache key of the code behind a run: the solver's sph closure (plus `modules`, e.g. a case
     module such as "sph.cases.ldc") and the experiment's own `files` (settings, scene, run script),
-    each hashed without docstrings and comments."""
+    each hashed without docstrings and comments.
+
+    Computed once per process (for a given sph root, files and modules): the key describes the code
+    this process imported and runs, so editing a file while a long run goes on does not make the
+    finished run look stale to the process that made it (the next process sees the edit)."""
+    return _code_fingerprint(str(SPH_ROOT), tuple(str(Path(f).resolve()) for f in files), tuple(modules))
+
+
+@functools.lru_cache(maxsize=None)
+def _code_fingerprint(sph_root: str, files: tuple, modules: tuple) -> str:
     files = [Path(f) for f in files]
     start = set(SOLVER_MODULES) | set(modules)
     for f in files:  # the sph modules the experiment's own scripts use (its case module, ...)

@@ -107,8 +107,10 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
 
     periodic side L < 2 cutoff      the minimum image is no longer unique within the support: a
                                     particle would interact with its own image or twice with a neighbour
-    fluid extent < cutoff           in some dimension the fluid is narrower than the kernel support
-                                    (fewer than cutoff / dx particles across)
+    (a fluid body narrower than the support is allowed: a droplet, a jet or a single particle thrown
+    at a wall is legitimate physics, resolved or not)
+    walled box < 3 cutoff           with walls, a non-periodic side holds less than two wall layers of
+                                    the support's thickness and one support of fluid (a cavity at dx 1)
     walls thinner than the support  with walls, a fluid particle closer than `cutoff` to the edge of
                                     the box in a non-periodic dimension (the wall layers, which lie
                                     inside the box, do not cover its support: layers * dx < cutoff)
@@ -125,18 +127,15 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
                 f"{support}, so a particle would interact with its own periodic image; use dx <= "
                 f"{side / (2 * cutoff / dx):.4g} (at least {math.ceil(2 * cutoff / dx)} particles across)")
     fluid = scene.r[scene.fluid_mask]
-    extent = fluid.max(axis=0) - fluid.min(axis=0) + dx
-    for d in range(scene.dim):
-        side = box[d] if scene.domain.periodic[d] else extent[d]
-        if side < cutoff * (1 - 1e-9):
-            raise ConfigError(
-                f"{where}: dx = {dx:g} is too coarse: the fluid is {side / dx:.3g} particle(s) ({side:g}) across in "
-                f"dimension {d}, less than {support}; use a smaller dx (at least {math.ceil(cutoff / dx)} particles "
-                f"across)")
     if scene.effects.walls is not None:
         for d in range(scene.dim):
             if scene.domain.periodic[d]:
                 continue
+            if box[d] < 3 * cutoff * (1 - 1e-9):
+                raise ConfigError(
+                    f"{where}: dx = {dx:g} is too coarse: the walled box is {box[d]:g} wide in dimension {d}, less "
+                    f"than two wall layers of {support} plus one support of fluid between them ({3 * cutoff:g}); "
+                    f"the fluid cannot be resolved: use dx <= {dx * box[d] / (3 * cutoff):.4g}")
             gap = np.minimum(fluid[:, d], box[d] - fluid[:, d])
             i = int(np.argmin(gap))
             if gap[i] < cutoff * (1 - 1e-6):

@@ -40,6 +40,7 @@ def test_docstring_and_io_edits_keep_the_cache_key(sph_copy):
     _edit_docstring(sph_copy / "io.py")
     (sph_copy / "io.py").write_text((sph_copy / "io.py").read_text() + "\nNEW_FORMAT_CONSTANT = 3\n")
     _edit_docstring(sph_copy / "momentum.py")
+    runs._code_fingerprint.cache_clear()  # a new process would hash the edited files afresh
     assert runs.code_fingerprint([RUN_PY]) == before
 
 
@@ -47,6 +48,8 @@ def test_physics_edit_changes_the_cache_key(sph_copy):
     before = runs.code_fingerprint([RUN_PY])
     s = (sph_copy / "momentum.py").read_text()
     (sph_copy / "momentum.py").write_text(s + "\n\ndef _extra_term(x):\n    return 2 * x\n")
+    assert runs.code_fingerprint([RUN_PY]) == before  # this process still runs the code it imported
+    runs._code_fingerprint.cache_clear()  # a new process hashes the edited files afresh
     assert runs.code_fingerprint([RUN_PY]) != before
 
 

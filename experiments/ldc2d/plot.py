@@ -3,7 +3,7 @@ t_end, one panel per method. Bottom: centreline profiles u(y) at x = 0.5 and v(x
 method (SPH interpolation averaged over the last frames, analysis.py) against Ghia et al. (1982).
 
 Fig. 6 uses the runs at figures.fig6's dx (paper: 0.02), Fig. 7 those at figures.fig7's (0.01).
-Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} and metrics.csv (re-evaluating
+Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} (re-evaluating
 the runs first, so a changed `analysis` setting takes effect); writes results/<profile>/<fig>/
 <fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx).
 
@@ -24,9 +24,11 @@ from sph import io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
 try:  # noqa: E402
     from . import analysis
+    from . import run as R
     from . import settings as S
 except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
     import analysis
+    import run as R
     import settings as S
 
 COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}
@@ -43,7 +45,7 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
         if not io.trajectory_status(traj)["complete"]:
             raise SystemExit(f"{fig_name}: run {m.name} {S.dx_tag(dx)} is not complete ({traj}); run "
                              f"experiments/ldc2d/run.py --fig {fig_name} first")
-        rows.append(analysis.record(exp, m.name, dx, results))
+        rows.append(R.evaluate(exp, m.name, dx, results))  # cached beside the run
     out = Path(results) / fig_name
     out.mkdir(parents=True, exist_ok=True)
 
@@ -98,8 +100,7 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
     for ext in ("png", "pdf"):
         fig.savefig(out / f"{fig_name}.{ext}", dpi=150)
     plt.close(fig)
-    table = pd.read_csv(S.metrics_path(results))
-    table[np.isclose(table["dx"], dx)].to_csv(out / "metrics.csv", index=False)
+    pd.DataFrame(rows).to_csv(out / "metrics.csv", index=False)  # exactly this figure's runs, as evaluated
     print(f"{fig_name} -> {out / (fig_name + '.png')}, {out / 'metrics.csv'}")
     for row in rows:
         print(f"  {row['method']:8s} dx {dx:g}: RMS dev. u {row['u_rms']:.4f} v {row['v_rms']:.4f}, "
@@ -117,4 +118,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    from sph.cli import main_guard
+
+    main_guard(main)

@@ -369,4 +369,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    from sph.cli import main_guard
+
+    main_guard(main)
