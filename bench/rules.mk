@@ -1,6 +1,6 @@
 # Benchmarks of the neighbour search and of the solver against JAX-SPH (what each measures: the
 # docstrings of bench/bench_scaling.py, bench/bench_peer.py, bench/bench_neighbors.py). Included by the top-level Makefile,
-# which defines PY, VENV and exports PYTHONPATH. Always re-run (timings, not products).
+# which defines PY and VENV. Always re-run (timings, not products).
 .PHONY: scaling bench-peer bench-neighbors
 
 scaling: | $(VENV)

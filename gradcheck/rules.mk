@@ -9,7 +9,6 @@
 # reverse mode through up to 1000 steps, one compilation per rollout length).
 GRADCHECK        := gradcheck
 GRADCHECK_OUT    := $(RESULTS)/gradcheck
-GRADCHECK_INPUTS := $(GRADCHECK)/config.yaml $(GRADCHECK)/settings.py $(GRADCHECK)/run.py $(CORE)
 
 .PHONY: fig1 grad-growth
 

@@ -13,14 +13,14 @@ PROFILE=${1:-paper}; FIG=${2:-fig7}; shift $(( $# > 2 ? 2 : $# )) || true
 METHODS=("$@"); [ ${#METHODS[@]} -eq 0 ] && METHODS=(sph tvf riemann)
 LOGS=results/$PROFILE/ldc2d/logs
 mkdir -p "$LOGS"
-export PYTHONPATH="$PWD" XLA_FLAGS="${XLA_FLAGS:---xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1}"
+export XLA_FLAGS="${XLA_FLAGS:---xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1}"
 for m in "${METHODS[@]}"; do
   pidf="$LOGS/${m}_$FIG.pid"
   if [ -f "$pidf" ] && kill -0 "$(cat "$pidf")" 2>/dev/null; then
     echo "$m $FIG: already running (pid $(cat "$pidf"))"; continue
   fi
   setsid nohup nice -n 10 .venv/bin/python experiments/ldc2d/run.py --profile "$PROFILE" --results "results/$PROFILE" \
-    --fig "$FIG" --only "$m" --no-progress --log-every 10 ${LDC2D_FLAGS---ignore-code-changes} >> "$LOGS/${m}_$FIG.log" 2>&1 < /dev/null &
+    --fig "$FIG" --only "$m" --no-progress --log-every 10 ${LDC2D_FLAGS-} >> "$LOGS/${m}_$FIG.log" 2>&1 < /dev/null &
   echo $! > "$pidf"
   echo "$m $FIG: started (pid $!), log $LOGS/${m}_$FIG.log"
 done

@@ -5,11 +5,10 @@
 # Each figure has its own runs (fig6: figures.fig6's dx, fig7: figures.fig7's), one stamp per figure.
 # The runs depend on the config, settings.py, run.py and the core, so editing any of these re-runs
 # run.py, which itself skips runs whose trajectories already match their inputs and resumes
-# interrupted ones (LDC2D_FLAGS=--ignore-code-changes: keep runs made with an older sph/ or run.py).
+# interrupted ones; LDC2D_FLAGS passes extra options to run.py.
 # The figures depend on the runs, analysis.py and plot.py: editing those (or the
 # `analysis` settings) re-evaluates and re-plots without re-running.
 LDC2D     := experiments/ldc2d
-LDC2D_RUN := $(LDC2D)/config.yaml $(LDC2D)/settings.py $(LDC2D)/run.py $(CORE)
 
 .PHONY: fig6 fig7 fig6-runs fig7-runs
 
