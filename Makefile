@@ -48,6 +48,7 @@ test: $(VENV) .venv-lb/.stamp
 bench: $(VENV)
 	$(PY) bench/bench_tgv.py
 	$(PY) bench/bench_effects.py
+	$(PY) bench/bench_guard.py
 	$(PY) bench/bench_grad_memory.py
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)

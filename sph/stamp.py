@@ -23,7 +23,7 @@ def outputs_digest(folder, exclude=()) -> str:
     h = hashlib.sha256()
     skip = {Path(e).resolve() for e in exclude}
     for p in sorted(folder.rglob("*")) if folder.exists() else []:
-        if not p.is_file() or p.resolve() in skip or p.suffix in (".csv", ".tmp", ".lock", ".log", ".pid", ".png", ".pdf"):
+        if not p.is_file() or p.resolve() in skip or p.suffix in (".csv", ".tmp", ".lock", ".log", ".pid", ".png", ".pdf", ".gif"):
             continue
         st = p.stat()
         h.update(str(p.relative_to(folder)).encode())

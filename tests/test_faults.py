@@ -7,8 +7,15 @@ limits) with the last good frame kept, a fixed dt above its limits reported befo
 config errors printed as one line naming the file, the profile the key is written in and the key.
 All on smoke sizes (at most a few hundred particles, a few hundred steps).
 """
+import shutil
+import signal
+import subprocess
+import sys
+import time
 import warnings
+from pathlib import Path
 
+import h5py
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,6 +35,7 @@ from sph.solver import InsufficientMemory, UnstableTimeStep
 from sph.state import FLUID
 
 DX = 0.05
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def thrown_block(speed=3.0, resting_block=False):
@@ -369,3 +377,69 @@ def test_main_guard_prints_simulation_errors_and_exits_3(capsys):
     assert e.value.code == EXIT_SIMULATION
     assert "particle 7" in capsys.readouterr().err
     assert main_guard(lambda x: x + 1, 1) == 2
+
+
+# -- interrupted runs: SIGINT and SIGKILL, then resume to the uninterrupted numbers ----------------
+
+def _study(tmp_path):
+    """A copy of tgv2d (a folder is a template) whose smoke profile is one small, long run: 100
+    particles, ~8000 steps, a frame every 80 steps (seconds of compute, so a signal lands mid-run)."""
+    study = tmp_path / "study"
+    shutil.copytree(ROOT / "experiments" / "tgv2d", study, ignore=shutil.ignore_patterns("__pycache__"))
+    cfg = yaml.safe_load((study / "config.yaml").read_text())
+    cfg["profiles"]["smoke"].update(dx=[0.1], t_end=20.0, frames=100, eval_times=[1.0],
+                                    methods=[{"name": "tvf", "effects": {"tvf": True}}],
+                                    relaxation={"steps": 20, "quench_every": 10})
+    (study / "config.yaml").write_text(yaml.safe_dump(cfg))
+    return study
+
+
+def _checkpoint_step(path) -> int:
+    """The writer's checkpoint step, read while another process writes the file (no file lock)."""
+    try:
+        with h5py.File(path, "r", locking=False) as f:
+            return int(f["00000/checkpoint"].attrs["step"])
+    except Exception:  # not created yet, or caught mid-write
+        return -1
+
+
+def _interrupt(cmd, traj, min_step: int, sig, timeout: float = 300) -> int:
+    """Start `cmd`, send it `sig` once the checkpoint in `traj` has reached `min_step`; its exit code."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    while proc.poll() is None and _checkpoint_step(traj) < min_step and time.time() - t0 < timeout:
+        time.sleep(0.02)
+    assert proc.poll() is None, f"the run ended before it could be interrupted: {proc.stderr.read()[-2000:]}"
+    proc.send_signal(sig)
+    proc.wait(timeout=60)
+    return proc.returncode
+
+
+def test_sigint_and_sigkill_resume_to_the_uninterrupted_numbers(tmp_path):
+    """A run stopped by Ctrl-C, then by SIGKILL, keeps what it wrote; calling it again continues from
+    its last frame to the same trajectory as a run never interrupted (float64: to round-off)."""
+    study = _study(tmp_path)
+
+    def cmd(res):
+        return [sys.executable, str(study / "run.py"), "--profile", "smoke", "--results", str(res), "--no-progress"]
+
+    ref, out = tmp_path / "ref", tmp_path / "out"
+    subprocess.run(cmd(ref), check=True, capture_output=True, text=True)
+    a = io.read_trajectory(ref / "study" / "tvf_dx0.1" / "traj.h5")
+    n_steps = int(a["attrs"]["n_steps"])
+    assert n_steps > 5000
+
+    traj = out / "study" / "tvf_dx0.1" / "traj.h5"
+    assert _interrupt(cmd(out), traj, n_steps // 4, signal.SIGINT) != 0
+    st = io.trajectory_status(traj)
+    assert st["exists"] and not st["complete"] and n_steps // 4 <= st["checkpoint_step"] < n_steps
+
+    assert _interrupt(cmd(out), traj, n_steps // 2, signal.SIGKILL) == -signal.SIGKILL
+    assert not io.trajectory_status(traj)["complete"]
+
+    done = subprocess.run(cmd(out), check=True, capture_output=True, text=True)
+    assert "resuming at step" in done.stdout
+    b = io.read_trajectory(traj)
+    np.testing.assert_array_equal(a["step"], b["step"])
+    np.testing.assert_allclose(b["position"], a["position"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b["e_kin"], a["e_kin"], rtol=1e-12)

@@ -4,9 +4,10 @@ downstream-wall pressure history against Buchner (2002) and the square column's 
 back-wall height against Martin & Moyce (1952).
 
 Reads results/<profile>/dambreak2d/*/traj.h5, series.csv and metrics.csv (evaluate.py); writes
-results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy).
+results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy); with --gif PATH
+only an animation of the Fig. 8 column's pressure in the figure's colour range (sph.animate).
 
-    python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke]
+    python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--gif fig8.gif]
 """
 import argparse
 import shutil
@@ -22,7 +23,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import sph  # noqa: E402
-from sph import io  # noqa: E402
+from sph import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import evaluate as E
     from . import settings as S
@@ -125,6 +126,15 @@ def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
     return out / "validation.png"
 
 
+def animate_fig8(exp: "S.Experiment", results, path) -> Path:
+    """An animation of the Fig. 8 column's pressure, in the figure's range of p / (rho g H)."""
+    column = exp.column(exp.pressure_column)
+    scale = exp.fluid.rho_ref * exp.g * column.height
+    lo, hi = exp.pressure_range
+    return animate.render(S.run_dir(results, column.name, exp.dx) / "traj.h5", path, field="pressure",
+                          vmin=lo * scale, vmax=hi * scale).path
+
+
 def plot(exp: "S.Experiment", results) -> Path:
     out = Path(results) / "fig8"
     out.mkdir(parents=True, exist_ok=True)
@@ -139,8 +149,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--gif", default=None, help="write only an animation of the Fig. 8 run to this file")
     args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+    if args.gif:
+        animate_fig8(exp, results, args.gif)
+    else:
+        plot(exp, results)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,8 @@
 # itself skips runs whose outputs already match their inputs and resumes interrupted ones. The
 # metrics depend on the runs, evaluate.py and the reference data; the figures on the metrics and
 # their plot script, so editing evaluate.py only re-evaluates and editing the plot script only re-plots.
+# fig8.gif animates the pressure of the Fig. 8 column (sph.animate), in the figure's colour range of
+# p / (rho g H); editing sph/animate.py re-renders only it.
 DB2D         := experiments/dambreak2d
 DB2D_RUNS    := $(RESULTS)/dambreak2d/runs.done
 DB2D_METRICS := $(RESULTS)/dambreak2d/metrics.csv
@@ -23,6 +25,9 @@ $(DB2D_METRICS): $(DB2D_RUNS) $(DB2D)/evaluate.py $(DB2D_REFS)
 # the runs and their metrics only
 dambreak2d: $(DB2D_METRICS)
 
-fig8: $(FIG8_OUT)
+fig8: $(FIG8_OUT) $(RESULTS)/fig8/fig8.gif
 $(FIG8_OUT) &: $(DB2D_METRICS) $(DB2D)/plot_fig8.py
 	$(PY) $(DB2D)/plot_fig8.py --profile $(PROFILE) --results $(RESULTS)
+
+$(RESULTS)/fig8/fig8.gif: $(DB2D_RUNS) $(DB2D)/plot_fig8.py sph/animate.py
+	$(PY) $(DB2D)/plot_fig8.py --profile $(PROFILE) --results $(RESULTS) --gif $@

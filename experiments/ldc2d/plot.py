@@ -5,9 +5,10 @@ method (SPH interpolation averaged over the last frames, analysis.py) against Gh
 Fig. 6 uses the runs at figures.fig6's dx (paper: 0.02), Fig. 7 those at figures.fig7's (0.01).
 Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} (re-evaluating
 the runs first, so a changed `analysis` setting takes effect); writes results/<profile>/<fig>/
-<fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx).
+<fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx); with --gif PATH only an animation
+of one method's run of that figure (--method, default tvf; sph.animate).
 
-    python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke]
+    python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke] [--gif fig6.gif]
 """
 import argparse
 import sys
@@ -20,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph import io  # noqa: E402
+from sph import animate, io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
 try:  # noqa: E402
     from . import analysis
@@ -113,8 +114,17 @@ def main(argv=None):
     ap.add_argument("--fig", choices=S.FIGURES, required=True)
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    ap.add_argument("--gif", default=None, help="write only an animation of one run of the figure to this file")
+    ap.add_argument("--method", default="tvf", help="the method animated with --gif (default tvf)")
     args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}", args.fig)
+    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+    if args.gif:
+        names = [m.name for m in exp.methods]
+        if args.method not in names:
+            raise SystemExit(f"--method {args.method}: not a method of this profile ({names})")
+        animate.render(S.run_dir(results, args.method, float(exp.figures[args.fig])) / "traj.h5", args.gif)
+    else:
+        plot(exp, results, args.fig)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,8 @@
 # run.py, which itself skips runs whose trajectories already match their inputs and resumes
 # interrupted ones; LDC2D_FLAGS passes extra options to run.py.
 # The figures depend on the runs, analysis.py and plot.py: editing those (or the
-# `analysis` settings) re-evaluates and re-plots without re-running.
+# `analysis` settings) re-evaluates and re-plots without re-running. fig6.gif animates the fig6 run of
+# LDC2D_GIF_METHOD (sph.animate); editing sph/animate.py re-renders only it.
 LDC2D     := experiments/ldc2d
 
 .PHONY: fig6 fig7 fig6-runs fig7-runs
@@ -28,10 +29,14 @@ $(RESULTS)/ldc2d/fig7_runs.done: FORCE | $(VENV)
 fig6-runs: $(RESULTS)/ldc2d/fig6_runs.done
 fig7-runs: $(RESULTS)/ldc2d/fig7_runs.done
 
-fig6: $(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv
+fig6: $(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv $(RESULTS)/fig6/fig6.gif
 $(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv &: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
 	$(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS)
 
 fig7: $(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv
 $(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv &: $(RESULTS)/ldc2d/fig7_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
 	$(PY) $(LDC2D)/plot.py --fig fig7 --profile $(PROFILE) --results $(RESULTS)
+
+LDC2D_GIF_METHOD ?= tvf
+$(RESULTS)/fig6/fig6.gif: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/plot.py sph/animate.py
+	$(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS) --gif $@ --method $(LDC2D_GIF_METHOD)

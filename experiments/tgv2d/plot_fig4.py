@@ -1,9 +1,10 @@
 """Fig. 4: velocity magnitude per particle of the 2D Taylor-Green vortex at t = 0 and t = t_end
 (method `fig4_method`, default TVF, at the finest dx of the profile).
 
-Reads results/<profile>/tgv2d/<method>_dx<dx>/traj.h5; writes results/<profile>/fig4/fig4.{png,pdf}.
+Reads results/<profile>/tgv2d/<method>_dx<dx>/traj.h5; writes results/<profile>/fig4/fig4.{png,pdf}, or
+with --gif PATH only an animation of the same run (sph.animate).
 
-    python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke]
+    python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke] [--gif fig4.gif]
 """
 import argparse
 import sys
@@ -15,16 +16,21 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph import io  # noqa: E402
+from sph import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
 except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
     import settings as S
 
 
+def fig4_traj(exp: "S.Experiment", results) -> Path:
+    """The trajectory Fig. 4 shows: `fig4_method` at the finest dx."""
+    return S.run_dir(results, exp.fig4_method, min(exp.dx)) / "traj.h5"
+
+
 def plot(exp: "S.Experiment", results, out=None) -> Path:
     dx = min(exp.dx)
-    traj = io.read_trajectory(S.run_dir(results, exp.fig4_method, dx) / "traj.h5")
+    traj = io.read_trajectory(fig4_traj(exp, results))
     if "velocity" not in traj:
         raise SystemExit("fig4 needs the velocity field: add 'velocity' to `keep` in config.yaml")
     out = Path(out) if out is not None else Path(results) / "fig4"
@@ -54,8 +60,13 @@ def main(argv=None):
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
     ap.add_argument("--out", default=None, help="figure folder (default <results>/fig4)")
+    ap.add_argument("--gif", default=None, help="write only an animation of the Fig. 4 run to this file")
     args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}", args.out)
+    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+    if args.gif:
+        animate.render(fig4_traj(exp, results), args.gif)
+    else:
+        plot(exp, results, args.out)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 # name: a copy of this folder, experiments/my_study, is `make my_study` (runs + both figures into
 # results/<profile>/my_study/), with no edit here. The run step always calls run.py, whose cache
 # (sph.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
-# output did, so the figures re-plot only then, or when their plot script changes.
+# output did, so the figures re-plot only then, or when their plot script changes. fig4.gif animates
+# the Fig. 4 run (fig4_method at the finest dx, sph.animate); editing sph/animate.py re-renders only it.
 _dir := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 _name := $(notdir $(_dir))
 _runs := $(RESULTS)/$(_name)/runs.done
@@ -17,14 +18,18 @@ $(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf: DIR := $(_dir)
 $(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf &: $(_runs) $(_dir)/plot_fig4.py
 	$(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
+$(_figs)/fig4/fig4.gif: DIR := $(_dir)
+$(_figs)/fig4/fig4.gif: $(_runs) $(_dir)/plot_fig4.py sph/animate.py
+	$(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --gif $@
+
 $(_figs)/fig5/fig5.png $(_figs)/fig5/fig5.pdf $(_figs)/fig5/metrics.csv: DIR := $(_dir)
 $(_figs)/fig5/fig5.png $(_figs)/fig5/fig5.pdf $(_figs)/fig5/metrics.csv &: $(_runs) $(_dir)/plot_fig5.py
 	$(PY) $(DIR)/plot_fig5.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 .PHONY: $(_name)
-$(_name): $(_figs)/fig4/fig4.png $(_figs)/fig5/fig5.png
+$(_name): $(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.gif $(_figs)/fig5/fig5.png
 
 ifeq ($(_name),tgv2d)
-fig4: $(RESULTS)/fig4/fig4.png $(RESULTS)/fig4/fig4.pdf
+fig4: $(RESULTS)/fig4/fig4.png $(RESULTS)/fig4/fig4.pdf $(RESULTS)/fig4/fig4.gif
 fig5: $(RESULTS)/fig5/fig5.png $(RESULTS)/fig5/fig5.pdf $(RESULTS)/fig5/metrics.csv
 endif
