@@ -11,7 +11,7 @@ RESULTS := results/$(PROFILE)
 FORCE:
 
 
-.PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig10 stability clean help
+.PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
 .DEFAULT_GOAL := help
 
 help:
@@ -21,6 +21,7 @@ help:
 	@echo "make fig4 fig5 [PROFILE=smoke]  2D Taylor-Green vortex (paper Figs. 4-5)"
 	@echo "make fig6 fig7 [PROFILE=smoke]  lid-driven cavity vs Ghia et al. 1982 (dx 0.02 / 0.01)"
 	@echo "make fig8 [PROFILE=smoke]       Riemann-SPH dam break vs Buchner 2002, Martin & Moyce 1952"
+	@echo "make fig9 [PROFILE=smoke]       3D Taylor-Green vortex, Re 100, vs JAX-Fluids (paper Fig. 9)"
 	@echo "make fig10 [PROFILE=smoke]      heated channel (paper Fig. 10) + heat-validation"
 	@echo "make heat-validation            heat operator vs the analytical decay of a sine, dx 0.05-0.01"
 	@echo "make stability [PROFILE=smoke]  matrix of hard cases -> results/<profile>/stability/"

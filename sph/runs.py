@@ -344,19 +344,48 @@ def cached_row(folder, key: str, compute: Callable) -> dict:
     return row
 
 
+def cached_positions(path, fingerprint: str, compute: Callable, label: str, **meta) -> np.ndarray:
+    """Initial positions (e.g. a relaxation, sph.relax) cached in `path` (.npy) with a .json sidecar:
+    reused when the sidecar holds `fingerprint`, else `compute()` -> (r, info) runs and both files are
+    written (the array atomically; `meta` and `info` go into the sidecar). Prints one summary line."""
+    path = Path(path)
+    side = path.with_suffix(".json")
+    stored = read_metadata(side) if path.exists() else None
+    if stored is not None and stored.get("fingerprint") == fingerprint:
+        try:
+            return np.load(path)
+        except (ValueError, OSError):
+            pass  # damaged: computed again below
+    r, info = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.npy")
+    np.save(tmp, r)
+    tmp.replace(path)
+    io.write_metadata(side, {"fingerprint": fingerprint, **meta, **info})
+    nan = float("nan")
+    print(f"{label}: {info.get('steps')} steps, max |rho/rho_ref - 1| {info.get('density_error_start', nan):.3g} -> "
+          f"{info.get('density_error_end', nan):.3g}, u_max {info.get('u_max_end', nan):.3g}", flush=True)
+    return r
+
+
 def save_record(folder, rec: dict) -> None:
     """Write the run record as record.json in the run folder (what `make accuracy` gathers)."""
     io.write_metadata(Path(folder) / "record.json", rec)
 
 
 def write_table(path, rows: list, sort: Optional[list] = None, ascending=True):
-    """Rewrite the csv table `path` from `rows` (atomically). Returns the DataFrame."""
+    """Rewrite the csv table `path` from `rows` (atomically). Returns the DataFrame. With no rows
+    (no run of the current config has finished) the table is removed: an old one would list runs
+    that are not the config's, and a csv without columns cannot be read back."""
     import pandas as pd
 
     df = pd.DataFrame(rows)
-    if sort and len(df):
-        df = df.sort_values(sort, ascending=ascending, ignore_index=True)
     path = Path(path)
+    if df.empty:
+        path.unlink(missing_ok=True)
+        return df
+    if sort:
+        df = df.sort_values(sort, ascending=ascending, ignore_index=True)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(path.suffix + ".tmp")
     df.to_csv(tmp, index=False)
@@ -368,6 +397,9 @@ def read_table(path):
     """A metrics csv written by `write_table`, with an error naming the file when it is damaged."""
     import pandas as pd
 
+    if not Path(path).exists():
+        raise FileNotFoundError(f"{path}: no metrics table (no run of the current config has finished); run its "
+                                "experiment first")
     try:
         return pd.read_csv(path)
     except Exception as e:  # pandas raises several types for empty, binary or malformed files

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 import sph
-from sph import io, simulate
+from sph import io, runs, simulate
 from sph.cases import tgv
 from sph.configtools import ConfigError
 from experiments.tgv2d import run as R
@@ -94,6 +94,24 @@ def test_finished_run_is_skipped(exp, finished):
     assert again["wall_s"] == row["wall_s"] and again["n_frames"] == row["n_frames"]
     assert len(pd.read_csv(S.metrics_path(results))) == 1  # upserted, not appended twice
 
+
+
+def test_metrics_table_lists_exactly_the_current_runs(exp, finished, tmp_path):
+    """metrics.csv is rebuilt from the trajectories of the current config: a damaged table is
+    replaced, and a switched dtype or a removed method leaves no row of the old config behind."""
+    results, _ = finished
+    work = tmp_path / "results"
+    shutil.copytree(results, work)
+    path = S.metrics_path(work)
+    path.write_bytes(path.read_bytes()[:40])  # truncated by a killed writer
+    assert len(R.write_metrics(exp, work)) == 1 and len(pd.read_csv(path)) == 1
+    f32 = S.load("smoke", overrides={**OVERRIDE, "numerics": {"dtype": "float32"}})
+    assert R.write_metrics(f32, work).empty and not path.exists()  # no float32 run has finished
+    other = S.load("smoke", overrides={**OVERRIDE, "methods": [{"name": "sph", "effects": {}}], "fig4_method": "sph"})
+    assert R.write_metrics(other, work).empty and not path.exists()
+    with pytest.raises(FileNotFoundError, match="no metrics table"):
+        runs.read_table(path)
+    assert len(R.write_metrics(exp, work)) == 1 and len(pd.read_csv(path)) == 1
 
 class _Stop(Exception):
     pass

@@ -34,6 +34,7 @@ except ImportError:  # run as a script: its folder is on sys.path
 
 PROBLEMS = {  # problem -> (experiment of its records, error column, what the error is)
     "Taylor-Green 2D": ("tgv2d", None, "time-averaged |u_max / exact - 1|"),
+    "Taylor-Green 3D": ("tgv3d", "err_e_kin_rms_rel", "RMS of E_kin / E_kin(JAX-Fluids) - 1"),
     "lid-driven cavity": ("ldc2d", "err_ghia_rms", "RMS deviation from Ghia (u, v)"),
     "dam break": ("dambreak2d", "err_front_relerr_max", "max. surge-front error vs Martin & Moyce"),
     "heat operator": ("thermal", "err_decay_rate", "|decay rate / exact - 1|"),

@@ -10,12 +10,12 @@ when its fingerprint (relaxation settings, material, numerics, code) matches.
 """
 import argparse
 import dataclasses
-import json
 
 import numpy as np
 
 import sph
 from sph import relax as core_relax
+from sph import runs
 from sph.cases import tgv
 from sph.lattice import cartesian, jitter
 
@@ -37,26 +37,9 @@ def relax(exp: "S.Experiment", dx: float, progress: bool = True):
 
 def relaxed_positions(exp: "S.Experiment", dx: float, results, progress: bool = True) -> np.ndarray:
     """Cached relaxed positions for spacing `dx` (computed and saved when missing or stale)."""
-    path = S.relaxed_path(results, dx)
-    side = path.with_suffix(".json")
-    fp = S.relax_fingerprint(exp, dx)
-    if path.exists() and side.exists():
-        try:
-            if json.loads(side.read_text()).get("fingerprint") == fp:
-                return np.load(path)
-        except (ValueError, OSError):
-            pass
-    r, info = relax(exp, dx, progress)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp.npy")
-    np.save(tmp, r)
-    tmp.replace(path)
-    side.write_text(json.dumps({"fingerprint": fp, "dx": dx, "relaxation": dataclasses.asdict(exp.relaxation),
-                                **info}, indent=2) + "\n")
-    print(f"relaxed {S.dx_tag(dx)}: {info.get('steps')} steps, max |rho/rho_ref - 1| "
-          f"{info.get('density_error_start', float('nan')):.3g} -> {info.get('density_error_end', float('nan')):.3g}, "
-          f"u_max {info.get('u_max_end', float('nan')):.3g}", flush=True)
-    return r
+    return runs.cached_positions(S.relaxed_path(results, dx), S.relax_fingerprint(exp, dx),
+                                 lambda: relax(exp, dx, progress), f"relaxed {S.dx_tag(dx)}", dx=dx,
+                                 relaxation=dataclasses.asdict(exp.relaxation))
 
 
 def main(argv=None):

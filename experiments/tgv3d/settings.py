@@ -1,0 +1,186 @@
+"""Settings of the 3D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
+the reference data, and the fingerprints that decide whether a cached result still matches its inputs."""
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+import sph
+from sph.cases import tgv3d
+from sph.configtools import ConfigError, digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+NAME = HERE.name
+"""The experiment's name is its folder's: results go to results/<profile>/<NAME>."""
+CONFIG = HERE / "config.yaml"
+KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
+STARTS = ("relaxed", "lattice")
+MIN_N_SIDE = 6
+"""The periodic side 2 pi must be at least twice the quintic support 3 dx (sph.solver.check_resolution)."""
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named solver variant: the effects its scene declares."""
+
+    name: str
+    effects: sph.Effects = field(default_factory=sph.Effects)
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Post-processing of the stored frames (analysis.py; not part of the run fingerprint: editing it
+    re-evaluates the runs without re-running them).
+
+    dissipation_span  time between the two frames of the central difference -dE/dt(t_k) =
+                      -(E_{k+j} - E_{k-j}) / (t_{k+j} - t_{k-j}), j = max(1, round(span / (2 frame spacing)));
+                      0 = the neighbouring frames. About one acoustic period or more filters the sound
+                      waves of the weakly compressible start (period 2 pi / (|k| c_ref) = 0.31 and 0.22
+                      for the |k| = 2 and 2 sqrt(2) modes of the TGV pressure at c_ref = 10), which
+                      otherwise swing the frame-to-frame rate by about as much as the dissipation itself
+    early_window      the early decay rate is minus the least-squares slope of E_kin over [0, early_window]
+    """
+
+    dissipation_span: float = 0.5
+    early_window: float = 1.0
+
+    def __post_init__(self):
+        require_finite(self, "analysis")
+        require(self.dissipation_span >= 0, "analysis.dissipation_span", f"must be >= 0, got {self.dissipation_span}")
+        require(self.early_window > 0, "analysis.early_window", f"must be positive, got {self.early_window}")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One profile of the experiment (see config.yaml for the meaning of each key)."""
+
+    methods: tuple[Method, ...]
+    n_side: tuple[int, ...]
+    t_end: float
+    case: str = "tgv3d"
+    material: sph.Material = field(default_factory=sph.Material)
+    numerics: sph.Numerics = field(default_factory=sph.Numerics)
+    frames: int = 200
+    keep: tuple[str, ...] = ()
+    connectivity_radius_factor: float = 1.45
+    start: str = "relaxed"
+    relaxation: Relaxation = field(default_factory=Relaxation)
+    reference: str = "validation_refs/tgv3d_ref_100.txt"
+    reference_re: float = 100.0
+    analysis: Analysis = field(default_factory=Analysis)
+
+    def __post_init__(self):
+        require_finite(self)
+        require(len(self.methods) > 0, "methods", "needs at least one method")
+        names = [m.name for m in self.methods]
+        for i, n in enumerate(names):
+            require(names.index(n) == i, f"methods[{i}].name", f"{n!r} appears twice")
+        require(len(self.n_side) > 0, "n_side", "needs at least one resolution (particles per side)")
+        for i, n in enumerate(self.n_side):
+            require(n >= MIN_N_SIDE, f"n_side[{i}]",
+                    f"must be >= {MIN_N_SIDE}: the box side 2 pi must be at least twice the kernel support 3 dx, got {n}")
+            require(self.n_side.index(n) == i, f"n_side[{i}]", f"{n} appears twice")
+        require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
+        require(self.frames >= 4, "frames", f"must be >= 4 (dE/dt by central differences), got {self.frames}")
+        require(self.connectivity_radius_factor > 0, "connectivity_radius_factor",
+                f"must be positive, got {self.connectivity_radius_factor}")
+        for i, k in enumerate(self.keep):
+            require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+        require(self.start in STARTS, "start", f"{self.start!r} is not one of {list(STARTS)}")
+        require(self.material.eta > 0, "material.eta",
+                f"must be positive: Re = rho_ref u_ref / eta needs a viscosity, got {self.material.eta}")
+        require(abs(self.re - self.reference_re) <= 1e-9 * self.reference_re, "material.eta",
+                f"Re = rho_ref u_ref / eta = {self.re:g} differs from reference_re = {self.reference_re:g}: the "
+                "runs would be compared with the wrong reference")
+        require(reference_path(self).is_file(), "reference", f"{reference_path(self)} does not exist")
+        require(self.analysis.dissipation_span < self.t_end / 2, "analysis.dissipation_span",
+                f"must be below t_end / 2 = {self.t_end / 2:g} (the central difference needs frames on both sides), "
+                f"got {self.analysis.dissipation_span}")
+
+    @property
+    def re(self) -> float:
+        """Reynolds number rho U L / eta with L = 1 (the box is 2 pi L)."""
+        return self.material.rho_ref * self.material.u_ref / self.material.eta
+
+    @property
+    def nu(self) -> float:
+        return self.material.eta / self.material.rho_ref
+
+    def dx(self, n: int) -> float:
+        return tgv3d.dx_for(n)
+
+    def method(self, name: str) -> Method:
+        return next(m for m in self.methods if m.name == name)
+
+
+def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
+    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
+    return load_profile(Experiment, path, profile, overrides)
+
+
+# -- reference ------------------------------------------------------------------------------------
+def reference_path(exp: Experiment) -> Path:
+    p = Path(exp.reference)
+    return p if p.is_absolute() else ROOT / p
+
+
+def load_reference(exp: Experiment) -> dict:
+    """JAX-Fluids reference (validation_refs/PROVENANCE.md): t, -dE/dt, E_kin per unit volume, from
+    t = 0.01. The exact t = 0 values (E = U^2/8, -dE/dt = 3 nu U^2/4, sph.cases.tgv3d) are put in
+    front, so that frames from t = 0 on interpolate without extrapolating."""
+    path = reference_path(exp)
+    try:
+        data = np.loadtxt(path, delimiter=",", ndmin=2)
+    except (OSError, ValueError) as e:
+        raise ConfigError(f"reference: cannot read {path} ({e})") from None
+    if data.shape[1] != 3 or data.shape[0] < 2 or not np.all(np.isfinite(data)) or np.any(np.diff(data[:, 0]) <= 0):
+        raise ConfigError(f"reference: {path} must hold rows t, -dE/dt, E_kin with increasing t, got shape {data.shape}")
+    U = exp.material.u_ref
+    t = np.concatenate([[0.0], data[:, 0]])
+    diss = np.concatenate([[tgv3d.dissipation_initial(exp.nu, U)], data[:, 1]])
+    e = np.concatenate([[tgv3d.e_kin_initial(U)], data[:, 2]])
+    return {"t": t, "dissipation": diss, "e_kin": e, "path": path}
+
+
+# -- paths ----------------------------------------------------------------------------------------
+def n_tag(n: int) -> str:
+    return f"n{n}"
+
+
+def out_dir(results) -> Path:
+    """results/<profile>/<NAME> (tgv3d for this folder)."""
+    return Path(results) / NAME
+
+
+def run_dir(results, method: str, n: int) -> Path:
+    return out_dir(results) / f"{method}_{n_tag(n)}"
+
+
+def relaxed_path(results, n: int) -> Path:
+    return out_dir(results) / f"relaxed_{n_tag(n)}.npy"
+
+
+def metrics_path(results) -> Path:
+    return out_dir(results) / "metrics.csv"
+
+
+# -- fingerprints ---------------------------------------------------------------------------------
+def code_hash(*scripts: str) -> str:
+    """Hash of the solver's code (sph.runs.code_fingerprint), settings.py and the named scripts of
+    this folder (with the sph modules they import, e.g. sph.cases.tgv3d and sph.relax)."""
+    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])
+
+
+def relax_fingerprint(exp: Experiment, n: int) -> str:
+    return digest({"n_side": n, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
+                   "relaxation": to_mapping(exp.relaxation), "code": code_hash("relax.py")})
+
+
+def run_fingerprint(exp: Experiment, method: Method, n: int) -> str:
+    start = relax_fingerprint(exp, n) if exp.start == "relaxed" else "lattice"
+    return digest({"case": exp.case, "n_side": n, "method": to_mapping(method), "material": to_mapping(exp.material),
+                   "numerics": to_mapping(exp.numerics), "t_end": exp.t_end, "frames": exp.frames,
+                   "keep": list(exp.keep), "start": start, "code": code_hash("run.py")})
