@@ -26,6 +26,7 @@ help:
 	@echo "make heat-validation            heat operator vs the analytical decay of a sine, dx 0.05-0.01"
 	@echo "make stability [PROFILE=smoke]  matrix of hard cases -> results/<profile>/stability/"
 	@echo "make accuracy [PROFILE=smoke]   accuracy-cost atlas: error vs wall time of every run record + a TGV sweep"
+	@echo "make sitl-cost [PROFILE=smoke]  Solver-in-the-Loop accuracy-cost plane: MSE_20 vs time per coarse step"
 	@echo "make <folder>                   any experiments/<folder> with a tgv2d-style rules.mk (e.g. a copy of tgv2d)"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make test                       test suite"
@@ -43,8 +44,11 @@ setup-lb: .venv-lb/.stamp
 .venv-lb/.stamp: environment.txt environment-lagrangebench.txt scripts/setup_lagrangebench.sh
 	bash scripts/setup_lagrangebench.sh
 
+# the tests run in TEST_WORKERS processes (pytest-xdist), a test file per worker at a time: most of a
+# test's time is XLA compilation, which uses one core
+TEST_WORKERS ?= 2
 test: $(VENV) .venv-lb/.stamp
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile tests
 
 bench: $(VENV)
 	$(PY) bench/bench_tgv.py

@@ -2,7 +2,8 @@
 Table 1): sitl/config.yaml -> frozen, validated dataclasses, paths and fingerprints.
 
 Sections of a profile: `data` (the RPF 2D dataset our solver generates), `model` (GNS / SitL
-architecture), `train` (LagrangeBench Trainer settings), `eval` (test-set inference) and `fig3`.
+architecture), `train` (LagrangeBench Trainer settings), `eval` (test-set inference), `fig3` and
+`cost` (the accuracy-cost comparison, sitl/cost.py).
 An unknown or mistyped key fails with a message naming it (e.g. ``profiles.smoke.train.stpes``).
 """
 from dataclasses import dataclass, field
@@ -194,12 +195,39 @@ class Fig3:
 
 
 @dataclass(frozen=True)
+class Cost:
+    """The accuracy-cost comparison (sitl/cost.py): MSE_20 on the test split against inference time
+    per coarse step Delta t = dt * write_every (one stored frame).
+
+    coarsening   temporal coarsening factors M of the solver-only points: the solver module
+                 (model.py, correction off) advances each Delta t in L = write_every / M substeps of
+                 M dt, from LagrangeBench's two input frames; M must divide data.write_every (M >
+                 write_every would be a step longer than a frame). M = 1 is that module at the data's
+                 own dt; the fine solver (the data's integrator, started consistently) is always
+                 evaluated besides
+    repeats      timed calls of one jitted coarse step per point, after compilation (median)
+    """
+
+    coarsening: tuple[int, ...] = (1, 2, 5, 10, 20)
+    repeats: int = 30
+
+    def __post_init__(self):
+        require(len(self.coarsening) >= 1, "cost.coarsening", "needs at least one factor M")
+        for i, m in enumerate(self.coarsening):
+            require(m >= 1, f"cost.coarsening[{i}]", f"must be >= 1, got {m}")
+        require(len(set(self.coarsening)) == len(self.coarsening), "cost.coarsening",
+                f"has repeated factors: {list(self.coarsening)}")
+        require(self.repeats >= 3, "cost.repeats", f"must be >= 3, got {self.repeats}")
+
+
+@dataclass(frozen=True)
 class Experiment:
     data: Data
     model: Model = field(default_factory=Model)
     train: Train = field(default_factory=Train)
     eval: Eval = field(default_factory=Eval)
     fig3: Fig3 = field(default_factory=Fig3)
+    cost: Cost = field(default_factory=Cost)
     models: tuple[str, ...] = MODELS
 
     def __post_init__(self):
@@ -213,6 +241,12 @@ class Experiment:
                 "exceeds the 22-frame windows of the valid split (raise data.frames[1])")
         require(max(self.fig3.stamps) <= self.eval.n_rollout_steps, "fig3.stamps",
                 f"must be <= eval.n_rollout_steps = {self.eval.n_rollout_steps}")
+        w = self.data.write_every
+        for i, m in enumerate(self.cost.coarsening):
+            require(w % m == 0, f"cost.coarsening[{i}]",
+                    f"M = {m} does not divide data.write_every = {w}: the solver at coarsening M takes "
+                    f"write_every / M substeps of M dt per stored frame; possible M: "
+                    f"{[k for k in range(1, w + 1) if w % k == 0]}")
 
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
@@ -240,6 +274,11 @@ def metrics_path(results, model: str) -> Path:
 
 def rollout_dir(results, model: str) -> Path:
     return out_dir(results) / "rollouts" / model
+
+
+def cost_dir(results) -> Path:
+    """sitl/cost.py's run records, one folder per point (gathered by experiments/accuracy/atlas.py)."""
+    return out_dir(results) / "cost"
 
 
 def data_config_digest(exp: Experiment) -> str:

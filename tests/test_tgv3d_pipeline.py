@@ -17,6 +17,8 @@ About 45-60 s on 2 CPU cores (a 400-step relaxation and three 84-step runs of 17
 compilation).
 """
 import json
+import subprocess
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -29,10 +31,10 @@ from sph import diagnostics, momentum
 from sph.cases import tgv3d
 from sph.configtools import ConfigError
 from experiments.tgv3d import analysis as A
-from experiments.tgv3d import plot_fig9 as P
 from experiments.tgv3d import run as R
 from experiments.tgv3d import settings as S
 
+ROOT = Path(__file__).resolve().parents[1]
 NU = 0.01
 EPS0 = 0.75 * NU  # exact -dE/dt at t = 0 for U = 1: nu <|grad u|^2>, <|grad u|^2> = 6 x 1/8
 
@@ -44,10 +46,11 @@ def exp():
 
 @pytest.fixture(scope="module")
 def finished(exp, tmp_path_factory):
-    """The smoke profile run and plotted into a fresh results folder: (results, {method: series})."""
+    """`make fig9 PROFILE=smoke` into a fresh results folder: (results, {method: series})."""
     results = tmp_path_factory.mktemp("tgv3d_smoke")
-    R.run_all(exp, results, progress=False)
-    P.plot(exp, results)
+    proc = subprocess.run(["make", "fig9", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     series = {m.name: A.energy_series(exp, A.read_series(S.run_dir(results, m.name, exp.n_side[0]) / "traj.h5"))
               for m in exp.methods}
     return results, series

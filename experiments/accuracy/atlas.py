@@ -39,6 +39,8 @@ PROBLEMS = {  # problem -> (experiment of its records, error column, what the er
     "dam break": ("dambreak2d", "err_front_relerr_max", "max. surge-front error vs Martin & Moyce"),
     "heat operator": ("thermal", "err_decay_rate", "|decay rate / exact - 1|"),
     "gradients": ("gradcheck", "err_rel_l2", "||g_AD - g_FD|| / ||g_FD||"),
+    # sitl/cost.py: a "run" is one 20-step test rollout (wall_s = 20 x inference time per coarse step)
+    "Solver-in-the-Loop (RPF 2D)": ("sitl", "err_mse20", "MSE_20 of 20-step test rollouts"),
 }
 
 

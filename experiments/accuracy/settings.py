@@ -55,7 +55,8 @@ class Atlas:
         for i, lv in enumerate(self.levels):
             require(bool(np.isfinite(lv)) and lv > 0, f"levels[{i}]", f"must be a positive error level, got {lv}")
         for i, g in enumerate(self.gather):
-            require((HERE.parent / g).is_dir(), f"gather[{i}]", f"{g!r} is not a folder of experiments/")
+            require((HERE.parent / g).is_dir() or (HERE.parents[1] / g / "rules.mk").is_file(), f"gather[{i}]",
+                    f"{g!r} is not a folder of experiments/ nor a top-level experiment (sitl/)")
 
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Atlas:

@@ -1,0 +1,439 @@
+"""Accuracy against cost on RPF 2D (issue 12, beyond the paper): MSE_20 of 20-step test rollouts
+(LagrangeBench's metrics, as sitl/evaluate.py) against the inference time of one coarse step, for
+the fine solver, the solver alone at several temporal coarsenings, GNS and SitL.
+
+Definitions. The dataset stores every W-th step (W = data.write_every) of our SPH run at dt
+(data.dt), so one coarse step, a stored frame and LagrangeBench's step, is Delta t = W dt.
+
+  temporal coarsening M   the number of fine steps dt one solver substep stands for: the solver
+                          alone at coarsening M advances each Delta t in L = W / M substeps of
+                          M dt (model.py's module, correction off, substeps = L). M must divide W
+                          (settings.Cost): M > W would be a step longer than a frame.
+  solver M                the points of cost.coarsening, plus M = W / model.substeps (Table 1's
+                          "solver only": the substep SitL corrects) if not among them. Like every
+                          model here it starts from LagrangeBench's two input frames with the
+                          frame-averaged velocity u = d(r^0, r^-1) / Delta t.
+  fine solver             the data's own integrator (sph step_fn: standard SPH, symplectic Euler)
+                          at the data's dt, W steps per frame, in float32, started consistently:
+                          u(t0) = d(r^0, r^-1) / Delta t + (Delta t / 2)(1 - 1 / W) a(r^0), exact
+                          for the data's symplectic Euler when the acceleration a is constant over
+                          a frame. Its MSE_20 is the floor: what two stored frames cannot tell about
+                          the state (the acceleration's variation within a frame), float32 round-off
+                          and chaotic growth. The solver at M = 1 is the same integrator started
+                          with the frame-averaged velocity, which lags by (Delta t / 2) a: the gap
+                          between the two is that start-up error alone.
+  SitL                    L = model.substeps corrected substeps: M = W / L.
+  GNS                     one network step per frame, standing for W fine steps: M = W.
+
+Accuracy: 20-step rollouts from the first eval.n_trajs windows of test.h5, as LagrangeBench's
+`infer` makes them (case.preprocess_eval: features and the graph neighbour list, re-allocated on
+overflow; the model; case.integrate; kinematic particles from the data), scored by its
+MetricsComputer and averaged by its `averaged_metrics`: MSE_5, MSE_20 (its `loss`), MSE_Ekin. The
+rollout loop is this script's, so that the one jitted step that makes the rollouts is also the one
+timed; it reproduces evaluate.py's numbers (`infer`'s) to float32 round-off: the L = model.substeps
+solver point matches metrics/solver.json to 1e-5 relative.
+
+Cost: inference time per coarse step, that jitted step (features, graph list, model, integration)
+from a test input, after compilation; every point is timed in each of cost.repeats interleaved
+rounds, so that the load of a shared machine falls on all alike; the median over rounds (the
+minimum is kept as ms_min). evaluate.py's Table-1 number times the model call alone, without
+GNS's graph construction.
+
+Trained models are never trained here: GNS / SitL appear when evaluate.py's metrics/<kind>.json
+exists and belongs to the current checkpoint (train.json complete, with the fingerprint train.py
+would compute now; the metrics' training steps and best step equal to its). Their MSE values are
+read from it, their time is measured here from ckp/<kind>/best. Otherwise they are left out, with
+the reason printed.
+
+Writes results/<profile>/sitl/cost.csv, cost.png (log-log MSE_20 against ms per coarse step) and a
+run record per point, sitl/cost/<name>/record.json (sph.runs' schema: experiment "sitl", err_mse20,
+err_mse5, err_e_kin; wall_s is one 20-step rollout, 20 x the time per coarse step, ms_per_step the
+time per coarse step), which `make accuracy` gathers. cost.json keeps the inputs' key: a call with
+the same inputs (data, config, code, trained models' metrics) does nothing.
+
+    .venv-lb/bin/python sitl/cost.py --profile smoke [--results results/smoke] [--force]
+"""
+import argparse
+import csv
+import dataclasses
+import json
+import math
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import haiku as hk  # noqa: E402
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+# LagrangeBench (sitl.common, then lagrangebench.*) is imported only when something is measured:
+# its import takes ~10 s, the up-to-date check of an unchanged call none
+from sitl import generate  # noqa: E402
+from sitl import model as M  # noqa: E402
+from sitl import settings as S  # noqa: E402
+from sph import runs  # noqa: E402
+from sph.configtools import digest, to_mapping  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py")]
+TRAINED = ("gns", "sitl")
+KEYS = {"mse5": "val/mse5", "mse20": "val/loss", "e_kin": "val/e_kin"}
+STYLE = {"fine": ("*", "C3"), "solver": ("o", "C0"), "gns": ("^", "C2"), "sitl": ("D", "C1")}
+COLUMNS = ["name", "kind", "method", "M", "substeps", "substep_dt", "substep_over_cfl", "mse5", "mse20", "e_kin",
+           "std_mse20", "finite", "ms_per_coarse_step", "ms_min", "compile_s", "n_rollouts", "source"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One point of the plane: `name` is its folder under sitl/cost/, M its temporal coarsening,
+    substeps the SPH substeps per coarse step (None for GNS)."""
+
+    name: str
+    kind: str
+    method: str
+    M: float
+    substeps: Optional[int]
+
+
+def _m(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def points(exp: S.Experiment) -> list:
+    """The fine solver, the solver alone at each configured M (and at SitL's substep), GNS, SitL."""
+    w, lsitl = exp.data.write_every, exp.model.substeps
+    out = [Point("fine", "fine", "fine solver", 1.0, w)]
+    for m in sorted(exp.cost.coarsening):
+        out.append(Point(f"solver_M{m}", "solver", f"solver M={m}", float(m), w // m))
+    if lsitl not in [p.substeps for p in out if p.kind == "solver"]:
+        out.append(Point(f"solver_L{lsitl}", "solver", f"solver M={_m(w / lsitl)} (L={lsitl}, as SitL)",
+                         w / lsitl, lsitl))
+    out.append(Point("gns", "gns", "GNS", float(w), None))
+    out.append(Point("sitl", "sitl", f"SitL (L={lsitl})", w / lsitl, lsitl))
+    return out
+
+
+def trained_status(exp: S.Experiment, results, kind: str, metadata_text: str):
+    """(metrics dict, None) when evaluate.py's metrics of `kind` belong to its current checkpoint,
+    else (None, why not)."""
+    mpath, ckp = S.metrics_path(results, kind), S.ckpt_dir(results, kind)
+    side = ckp / "train.json"
+    if not mpath.exists():
+        return None, f"no {mpath} (make table1 trains and evaluates it)"
+    if not side.exists() or not (ckp / "best" / "params_tree.pkl").exists():
+        return None, f"no trained checkpoint in {ckp}"
+    rec = json.loads(side.read_text())
+    if not rec.get("complete") or rec.get("fingerprint") != S.train_fingerprint(exp, kind, metadata_text):
+        return None, f"{ckp} was trained on other inputs or is unfinished (make table1 retrains it)"
+    met = json.loads(mpath.read_text())
+    if (met.get("train_steps"), met.get("best_step")) != (rec.get("step_max"), rec.get("best_step")):
+        return None, f"{mpath} was made from another checkpoint (run sitl/evaluate.py --model {kind})"
+    if met.get("n_rollout_steps") != exp.eval.n_rollout_steps or met.get("n_rollouts") != n_rollouts(exp):
+        return None, f"{mpath} was evaluated with other eval settings (run sitl/evaluate.py --model {kind})"
+    return met, None
+
+
+def n_rollouts(exp: S.Experiment) -> int:
+    """Test rollouts of evaluate.py (and here): every (input_seq_length + n_rollout_steps)-frame window
+    of the test split per trajectory (LagrangeBench's H5Dataset), or eval.n_trajs of them."""
+    windows = exp.data.frames[2] // (exp.model.input_seq_length + exp.eval.n_rollout_steps) * exp.data.seeds
+    return windows if exp.eval.n_trajs == -1 else min(exp.eval.n_trajs, windows)
+
+
+def inputs_key(exp: S.Experiment, results, path: Path, trained: dict) -> str:
+    """Everything the outputs depend on: the dataset, the settings used, the code (with the sph
+    modules it imports), and the metrics and training record of each trained model shown."""
+    gen = json.loads((path / "generate.json").read_text())
+    return digest({"data": [gen.get("fingerprint"), gen.get("config"), (path / "metadata.json").read_text()],
+                   "cost": to_mapping(exp.cost), "eval": to_mapping(exp.eval), "model": to_mapping(exp.model),
+                   "dtype": exp.train.dtype, "seed": exp.train.seed, "code": runs.code_fingerprint(CODE),
+                   "trained": {k: [S.metrics_path(results, k).read_text(),
+                                   (S.ckpt_dir(results, k) / "train.json").read_text()]
+                               for k, (met, _) in trained.items() if met is not None}})
+
+
+def solver_model(exp: S.Experiment, data_train, case, substeps: int):
+    """The solver alone (model.py, correction off) with `substeps` substeps per coarse step."""
+    cfg = dataclasses.replace(exp.model, substeps=substeps)
+    return M.build("solver", data_train.metadata, case.normalization_stats, data_train[0][0][:, 0], cfg,
+                   exp.train.dtype)
+
+
+def fine_model(exp: S.Experiment, data_train, case):
+    """The fine solver (module docstring) as a haiku model LagrangeBench's `infer` runs: W steps of
+    our solver's step_fn at the data's dt from a consistent start; output in LagrangeBench's
+    normalised acceleration like model.py's (NaN if a neighbour list overflowed)."""
+    meta = data_train.metadata
+    w = int(meta["write_every"])
+    setup = M.make_setup(meta, case.normalization_stats, data_train[0][0][:, 0], w, exp.train.dtype,
+                         exp.model.capacity_multiplier)
+    solver = setup.solver
+    disp = solver.scene.domain.make_displacement(solver.neighbors.cutoff + solver.neighbors.skin)
+    lag = 0.5 * setup.frame_dt * (1.0 - 1.0 / w)
+
+    def fn(sample):
+        features, _ = sample
+        pos = jnp.asarray(features["abs_pos"], setup.dtype)
+        r0 = pos[:, -1]
+        v0 = disp(r0, pos[:, -2])                        # per-frame displacement
+        u = v0 / setup.frame_dt
+        nbrs = solver.neighbors.update(r0, setup.sph_nbrs)
+        state = solver.state_at(r0, u + lag * solver.state_at(r0, u, nbrs).dudt, nbrs)
+
+        def body(k, carry):
+            st, nb, over = carry
+            st, nb = solver.step_fn(st, nb, k + 1)
+            return st, nb, over | nb.did_buffer_overflow.astype(bool)
+
+        state, _, over = jax.lax.fori_loop(0, w, body, (state, nbrs, nbrs.did_buffer_overflow.astype(bool)))
+        acc = (disp(state.r, r0) - v0 - setup.acc_mean) / setup.acc_std
+        return {"acc": jnp.where(over, jnp.nan, acc)}
+
+    return hk.without_apply_rng(hk.transform_with_state(fn))
+
+
+class Stepper:
+    """One jitted coarse step of a rollout, as LagrangeBench's eval loop makes it: features and graph
+    list (case.preprocess_eval), the model, case.integrate, kinematic particles set from the target."""
+
+    def __init__(self, model, params, state, case, sample):
+        from lagrangebench.utils import get_kinematic_mask
+
+        self.params, self.state, self.case, self.ptype = params, state, case, sample[1]
+        self.nbrs = case.allocate_eval(sample)[1]
+        kinematic = get_kinematic_mask(self.ptype)
+
+        def step(params, state, pos, nbrs, target):
+            features, nbrs = case.preprocess_eval((pos, self.ptype), nbrs)
+            pred, state = model.apply(params, state, (features, self.ptype))
+            nxt = jnp.where(kinematic[:, None], target, case.integrate(pred, pos))
+            return jnp.concatenate([pos[:, 1:], nxt[:, None]], axis=1), state, nbrs
+
+        self.step = jax.jit(step)
+        self.sample = sample
+        t0 = time.perf_counter()
+        jax.block_until_ready(self(sample[0], sample[0][:, -1]))
+        self.compile_s = time.perf_counter() - t0
+
+    def __call__(self, pos, target, state=None):
+        return self.step(self.params, self.state if state is None else state, pos, self.nbrs, target)
+
+    def rollout(self, traj, n_steps: int, isl: int):
+        """(n_steps, N, dim) predicted positions from the first isl frames of traj (N, T, dim)."""
+        pos, state, preds = traj[:, :isl], self.state, []
+        for k in range(n_steps):
+            nxt, new_state, nbrs = self.step(self.params, state, pos, self.nbrs, traj[:, isl + k])
+            if bool(nbrs.did_buffer_overflow):       # as LagrangeBench: re-allocate and redo the step
+                self.nbrs = self.case.allocate_eval((pos, self.ptype))[1]
+                nxt, new_state, nbrs = self.step(self.params, state, pos, self.nbrs, traj[:, isl + k])
+            pos, state, self.nbrs = nxt, new_state, nbrs
+            preds.append(pos[:, -1])
+            if not bool(jnp.isfinite(preds[-1]).all()):  # blown up (or an in-model list overflowed):
+                preds += [preds[-1]] * (n_steps - k - 1)  # NaN to the end, no list built from NaN
+                break
+        return jnp.stack(preds)
+
+    def time_once(self) -> float:
+        t0 = time.perf_counter()
+        jax.block_until_ready(self(self.sample[0], self.sample[0][:, -1]))
+        return time.perf_counter() - t0
+
+
+def accuracy(exp: S.Experiment, stepper: Stepper, data_test, computer) -> dict:
+    """MSE_5, MSE_20 (LagrangeBench's `loss`) and MSE_Ekin over the first eval.n_trajs test windows,
+    LagrangeBench's MetricsComputer `computer` per rollout and its averaged_metrics over them."""
+    from lagrangebench.evaluate import averaged_metrics
+
+    ev, isl = exp.eval, data_test.input_seq_length
+    n = data_test.num_samples if ev.n_trajs == -1 else min(ev.n_trajs, data_test.num_samples)
+    metrics = {}
+    for i in range(n):
+        traj = jnp.asarray(data_test[i][0])
+        pred = stepper.rollout(traj, ev.n_rollout_steps, isl)
+        target = traj[:, isl:isl + ev.n_rollout_steps].transpose(1, 0, 2)
+        metrics[f"rollout_{i}"] = computer(pred, target)
+    avg = averaged_metrics(metrics)
+    return {"n_rollouts": n, **{k: avg[v] for k, v in KEYS.items()}, "std_mse20": avg["val/stdloss"]}
+
+
+def interleaved_times(steppers: dict, repeats: int) -> dict:
+    """{name: (median s, min s)} over `repeats` rounds, each calling every stepper once."""
+    times = {k: [] for k in steppers}
+    for _ in range(repeats):
+        for k, st in steppers.items():
+            times[k].append(st.time_once())
+    return {k: (float(np.median(v)), float(np.min(v))) for k, v in times.items()}
+
+
+def record(exp: S.Experiment, p: Point, row: dict) -> dict:
+    """The run record of one point (sph.runs.RECORD_COLUMNS, then err_<name>, then extras): a "run"
+    is one 20-step test rollout, so wall_s = n_rollout_steps x the time per coarse step."""
+    d, n = exp.data, exp.eval.n_rollout_steps
+    s = row["ms_per_coarse_step"] / 1e3
+    frame_dt = d.dt * d.write_every
+    fixed = {"experiment": "sitl", "target": "sitl-cost", "method": p.method,
+             "effects": "standard" if p.kind != "gns" else "", "kernel": "quintic" if p.kind != "gns" else "",
+             "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
+             "dt": frame_dt, "t_end": n * frame_dt, "wall_s": n * s, "compile_s": row["compile_s"],
+             "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb()}
+    rec = {c: fixed[c] for c in runs.RECORD_COLUMNS}
+    rec.update({f"err_{k}": row[k] for k in ("mse20", "mse5", "e_kin")})
+    rec.update({k: row[k] for k in ("kind", "M", "substeps", "substep_dt", "substep_over_cfl", "finite",
+                                    "n_rollouts", "source")})
+    return rec
+
+
+def plot(rows: list, path: Path, title: str):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.6), constrained_layout=True)
+    ok = [r for r in rows if r["finite"] and r["mse20"] > 0]
+    top = max([r["mse20"] for r in ok], default=1.0) * 10
+    family = sorted([r for r in rows if r["kind"] == "solver" and r in ok], key=lambda r: r["M"])
+    if len(family) > 1:
+        ax.plot([r["ms_per_coarse_step"] for r in family], [r["mse20"] for r in family], "-", color="C0",
+                lw=1, alpha=0.5)
+    shown = set()
+    for r in rows:
+        marker, color = STYLE[r["kind"]]
+        y = r["mse20"] if r in ok else top
+        label = {"fine": "fine solver (dt, consistent start)", "solver": "solver only (M)", "gns": "GNS",
+                 "sitl": "SitL"}[r["kind"]]
+        ax.loglog(r["ms_per_coarse_step"], y, marker if r in ok else "x", color=color, ms=9 if marker == "*" else 7,
+                  ls="none", label=None if label in shown else label)
+        shown.add(label)
+        note = ("fine" if r["kind"] == "fine" else f"M={_m(r['M'])}") + ("" if r in ok else " diverged")
+        ax.annotate(note, (r["ms_per_coarse_step"], y), textcoords="offset points", xytext=(5, 4), fontsize=7)
+    ax.set(xlabel="inference time per coarse step [ms]", ylabel="MSE$_{20}$ (test rollouts)", title=title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def write_csv(rows: list, path: Path):
+    tmp = path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k) for k in COLUMNS})
+    tmp.replace(path)
+
+
+def outputs(results) -> list:
+    out = S.out_dir(results)
+    return [out / "cost.csv", out / "cost.png", out / "cost.json"]
+
+
+def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> list:
+    path = generate.ready(exp, results)
+    meta_text = (path / "metadata.json").read_text()
+    plan = points(exp)
+    trained = {k: trained_status(exp, results, k, meta_text) for k in TRAINED}
+    key = inputs_key(exp, results, path, trained)
+    out = S.out_dir(results)
+    side = out / "cost.json"
+    if not force and all(p.exists() for p in outputs(results)):
+        try:
+            stored = json.loads(side.read_text())
+        except ValueError:  # damaged: measured again
+            stored = {}
+        names = [p.name for p in plan if p.kind not in TRAINED or trained[p.kind][0] is not None]
+        if stored.get("key") == key and all((S.cost_dir(results) / n / "record.json").exists() for n in names):
+            print(f"cost: up to date ({out / 'cost.csv'})", flush=True)
+            return stored["rows"]
+
+    from sitl import common as C  # sets up LagrangeBench first
+    from lagrangebench.evaluate import MetricsComputer
+    from lagrangebench.utils import load_haiku
+
+    data_train, _, data_test = C.datasets(exp, path)
+    case = C.case(exp, data_train)
+    computer = MetricsComputer(["mse", "e_kin"], dist_fn=case.displacement, metadata=data_test.metadata,
+                               input_seq_length=data_test.input_seq_length, stride=exp.eval.metrics_stride)
+    pos, ptype = data_test[0]
+    sample = (jnp.asarray(pos[:, :exp.model.input_seq_length]), jnp.asarray(ptype))  # the timed input
+    features, _ = case.allocate_eval(sample)
+    gen = json.loads((path / "generate.json").read_text())
+    cfl = (gen.get("dt_limits") or {}).get("dt")
+    d = exp.data
+    rows, steppers = [], {}
+    for p in plan:
+        if p.kind in TRAINED:
+            met, why = trained[p.kind]
+            if met is None:
+                print(f"cost: {p.method} left out: {why}", flush=True)
+                continue
+            model = C.model(exp, p.kind, data_train, case)
+            params, state, _, _ = load_haiku(str(S.ckpt_dir(results, p.kind) / "best"))
+            steppers[p.name] = Stepper(model, params, state, case, sample)
+            acc = {"n_rollouts": met["n_rollouts"], **{k: met[k] for k in KEYS}, "std_mse20": met["std_mse20"]}
+            source = f"metrics/{p.kind}.json"
+        else:
+            model = fine_model(exp, data_train, case) if p.kind == "fine" else \
+                solver_model(exp, data_train, case, p.substeps)
+            # no weights: the initial (params, state) from the abstract init, never running the module
+            # eagerly op by op (seconds for W substeps); the solver's only state is its zero overflow count
+            shapes = jax.eval_shape(model.init, jax.random.PRNGKey(0), (features, sample[1]))
+            params, state = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
+            steppers[p.name] = Stepper(model, params, state, case, sample)
+            acc = accuracy(exp, steppers[p.name], data_test, computer)
+            source = "measured"
+        sub = None if p.substeps is None else d.dt * d.write_every / p.substeps
+        rows.append({"name": p.name, "kind": p.kind, "method": p.method, "M": p.M, "substeps": p.substeps,
+                     "substep_dt": sub, "substep_over_cfl": sub / cfl if sub and cfl else None, **acc,
+                     "finite": bool(all(math.isfinite(acc[k]) for k in KEYS)),
+                     "compile_s": steppers[p.name].compile_s, "source": source})
+        print(f"cost: {p.method:32s} MSE_5 {acc['mse5']:.3g}  MSE_20 {acc['mse20']:.3g}  "
+              f"(compile {steppers[p.name].compile_s:.1f} s)", flush=True)
+    times = interleaved_times(steppers, exp.cost.repeats)
+    for r in rows:
+        med, fastest = times[r["name"]]
+        r.update(ms_per_coarse_step=1e3 * med, ms_min=1e3 * fastest)
+        print(f"cost: {r['method']:32s} {r['ms_per_coarse_step']:.3g} ms per coarse step "
+              f"(min {r['ms_min']:.3g})", flush=True)
+
+    out.mkdir(parents=True, exist_ok=True)
+    cdir = S.cost_dir(results)
+    names = {r["name"] for r in rows}
+    if cdir.exists():  # a point no longer configured (or a model now stale) must not reach the atlas
+        for old in cdir.iterdir():
+            if old.is_dir() and old.name not in names:
+                shutil.rmtree(old)
+    by_name = {p.name: p for p in plan}
+    for r in rows:
+        folder = cdir / r["name"]
+        folder.mkdir(parents=True, exist_ok=True)
+        runs.save_record(folder, record(exp, by_name[r["name"]], r))
+    write_csv(rows, out / "cost.csv")
+    plot(rows, out / "cost.png", f"RPF 2D, {d.n_particles} particles ({profile or Path(results).name}): "
+                                  f"coarse step = {d.write_every} dt")
+    side.write_text(json.dumps({"key": key, "rows": rows}, indent=2) + "\n")
+    print(f"cost: {len(rows)} points -> {out / 'cost.csv'}, cost.png, {cdir}/*/record.json", flush=True)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None)
+    ap.add_argument("--force", action="store_true", help="measure again even if the inputs are unchanged")
+    args = ap.parse_args(argv)
+    exp = S.load(args.profile)
+    run(exp, args.results or f"results/{args.profile}", args.profile, args.force)
+
+
+if __name__ == "__main__":
+    from sph.cli import main_guard
+
+    main_guard(main)
