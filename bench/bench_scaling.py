@@ -74,6 +74,18 @@ def _plan_bytes(compiled):
     return ma.argument_size_in_bytes + ma.output_size_in_bytes + ma.temp_size_in_bytes - ma.alias_size_in_bytes
 
 
+
+def count_rebuilds(solver, state, nbrs, steps: int) -> int:
+    """Neighbour-list rebuilds in `steps` steps from (state, nbrs): stepped one at a time, a rebuild
+    is a change of the list's reference positions."""
+    step = jax.jit(solver.step_fn)
+    s, nb, rebuilds = state, nbrs, 0
+    for k in range(steps):
+        s, nb2 = step(s, nb, k + 1)
+        rebuilds += int(not np.array_equal(np.asarray(nb2.reference_position), np.asarray(nb.reference_position)))
+        nb = nb2
+    return rebuilds
+
 def measure(scene, steps, backend="cell_sort", dtype="float64", repeats=2):
     """Time per step (chunk of `steps`), search share and planned memory of one scene."""
     solver = sph.build_solver(scene, sph.Numerics(dtype=dtype, neighbor_search=backend))
@@ -84,13 +96,7 @@ def measure(scene, steps, backend="cell_sort", dtype="float64", repeats=2):
     compile_s = time.perf_counter() - t0
     chunk_s, out = _best(compiled, state, nbrs, 0, steps, repeats=repeats)
     assert int(out[2]) == steps and not bool(out[3]), "benchmark run overflowed its neighbour list"
-    # rebuilds in the chunk: step one at a time and watch the reference positions change
-    step = jax.jit(solver.step_fn)
-    s, nb, rebuilds = state, nbrs, 0
-    for k in range(steps):
-        s, nb2 = step(s, nb, k + 1)
-        rebuilds += int(not np.array_equal(np.asarray(nb2.reference_position), np.asarray(nb.reference_position)))
-        nb = nb2
+    rebuilds = count_rebuilds(solver, state, nbrs, steps)
     # one forced build with the list's capacities
     impl = solver.neighbors.impl
     if backend == "cell_sort":

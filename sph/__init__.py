@@ -3,7 +3,11 @@
 `import sph` leaves JAX's x64 flag alone; a solver built with `numerics.dtype: float64` switches it
 on (`sph.precision.enable_x64`), float32 runs never need it.
 """
-from . import precision  # noqa: F401
+from . import xla_cpu
+
+xla_cpu.set_cpu_defaults()
+
+from . import precision  # noqa: F401, E402
 from .config import Effects, Material, Numerics
 from .configtools import ConfigError
 from .domain import Domain

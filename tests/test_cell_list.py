@@ -9,6 +9,11 @@
 * In the solver: a short TGV run and a gradient through `scan_rollout` with backend "cell_sort"
   equal those with "jax_md" to round-off (the lists differ only in the order of the slots, which
   reorders the pair sums).
+* Speed work: cell_sort is the default search; the bit-count compaction of a build equals the
+  exclusive prefix sum; equal searches compare and hash equal (compiled allocation shared); the
+  step evaluated in row blocks (sph.pairs.row_blocked) equals the unblocked step and its gradient
+  to round-off for every kind of scene (walls, Riemann walls, re-initialization, heat, 3D), and
+  operations across particles inside a blocked function are evaluated over all rows.
 """
 import jax
 import jax.numpy as jnp
@@ -209,3 +214,135 @@ def test_gradient_through_scan_rollout_equals_jax_md():
     assert grads["cell_sort"][0] == pytest.approx(grads["jax_md"][0], rel=1e-12)
     ga, gb = grads["cell_sort"][1], grads["jax_md"][1]
     assert np.max(np.abs(ga - gb)) <= 1e-9 * np.max(np.abs(gb))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Speed work (issue 11): the compaction of a build, the search as a static argument, row blocking
+# ---------------------------------------------------------------------------------------------------
+
+def test_default_search_is_cell_sort():
+    assert sph.Numerics().neighbor_search == "cell_sort"
+    assert make_neighbor_search(DOMAINS["2d-periodic"], 0.1, 0.02).backend == "cell_sort"
+
+
+@pytest.mark.parametrize("c", [1, 7, 31, 32, 33, 80, 100])
+def test_hits_before_is_the_exclusive_prefix_count(c):
+    from sph.cell_list import _hits_before
+
+    rng = np.random.default_rng(c)
+    for density in (0.0, 0.1, 0.5, 1.0):
+        hit = rng.uniform(size=(37, c)) < density
+        expected = np.cumsum(hit, axis=1) - hit
+        np.testing.assert_array_equal(np.asarray(jax.jit(_hits_before)(jnp.asarray(hit))), expected)
+
+
+def test_equal_searches_share_their_compiled_allocation():
+    from sph.cell_list import make_cell_list
+
+    domain = DOMAINS["2d-periodic"]
+    a, b = make_cell_list(domain, 0.12, 0.02), make_cell_list(domain, 0.12, 0.02)
+    assert a == b and hash(a) == hash(b)
+    assert a != make_cell_list(domain, 0.12, 0.03)
+
+
+def _blocked_scenes():
+    import dataclasses
+
+    from sph.cases import tank, tgv3d
+
+    mat, hot = sph.Material(eta=0.01), sph.Material(eta=0.01, kappa=0.1, c_p=1.0)
+    r = jitter(cartesian([0.0, 0.0], [1.0, 1.0], DX), 0.1 * DX, seed=11, box=[1.0, 1.0])
+
+    def tank_scene(fx):
+        return tank.scene(0.1, mat, fx, width=0.5, height=0.5, tank_length=1.0, tank_height=1.0)
+
+    heated = tank_scene(sph.Effects(walls="no_slip", tvf=True))
+    heated = dataclasses.replace(heated, material=hot, effects=dataclasses.replace(heated.effects, heat=True),
+                                 T=1.0 + heated.r[:, 0], T_fixed=heated.wall_mask)
+    return {
+        "tgv_sph": tgv.scene(DX, mat, sph.Effects(), r=r),
+        "tgv_tvf": tgv.scene(DX, mat, sph.Effects(tvf=True), r=r),
+        "tgv_riemann_reinit": tgv.scene(DX, mat, sph.Effects(riemann=True, density_evolution=True,
+                                                             density_reinit_every=2), r=r),
+        "tank_riemann_walls": tank_scene(sph.Effects(walls="no_slip", gravity=(0.0, -1.0), riemann=True,
+                                                     density_evolution=True)),
+        "tank_free_slip_av": tank_scene(sph.Effects(walls="free_slip", gravity=(0.0, -1.0), density_evolution=True,
+                                                    artificial_viscosity=0.1)),
+        "tank_heat_tvf": heated,
+        "tgv3d_tvf": tgv3d.scene(tgv3d.dx_for(8), mat, sph.Effects(tvf=True)),
+    }
+
+
+BLOCKED_SCENES = _blocked_scenes()
+
+
+@pytest.mark.parametrize("name", list(BLOCKED_SCENES))
+def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
+    """The step evaluated in blocks of a few particles (sph.pairs.row_blocked, several passes, the
+    last block overlapping the one before) gives the unblocked state to round-off, walls, Riemann
+    walls, density re-initialization and heat included, and so does a gradient through two steps."""
+    import sph.pairs
+
+    scene = BLOCKED_SCENES[name]
+
+    def run(block_pairs):
+        monkeypatch.setattr(sph.pairs, "BLOCK_PAIRS", block_pairs)
+        solver = sph.build_solver(scene, sph.Numerics(dtype="float64"))
+        state, nbrs = solver.init_fn()
+        step = jax.jit(solver.step_fn)
+        for k in range(1, 4):
+            state, nbrs = step(state, nbrs, k)
+        nbrs0 = solver.neighbors.allocate(jnp.asarray(scene.r))
+
+        def loss(r0):
+            s = solver.state_at(r0, jnp.asarray(scene.u), nbrs0)
+            for k in range(1, 3):
+                s, _ = solver.step_fn(s, nbrs0, k)
+            return jnp.sum(s.u**2) + jnp.sum(s.rho)
+
+        grad = jax.jit(jax.grad(loss))(jnp.asarray(scene.r))
+        scans = str(jax.make_jaxpr(solver.step_fn)(state, nbrs, 1)).count("scan[")
+        return state, grad, scans
+
+    ref, g_ref, scans_ref = run(1 << 40)                    # one block: the unblocked function
+    k = int(sph.build_solver(scene).init_fn()[1].idx.shape[1])
+    out, g, scans = run(k * 37)                                # blocks of 37 rows
+    assert scans > scans_ref, "the blocked step should loop over blocks"
+    for f in ("r", "u", "v", "rho", "p", "dudt", "dvdt", "T"):
+        a, b = getattr(out, f), getattr(ref, f)
+        if b is None:
+            assert a is None
+            continue
+        scale = max(float(jnp.max(jnp.abs(b))), 1e-300)
+        # p = c^2 (rho - rho_ref) cancels ~3 digits of rho's round-off
+        assert float(jnp.max(jnp.abs(a - b))) <= (1e-11 if f != "p" else 1e-9) * scale, f
+    assert float(jnp.max(jnp.abs(g - g_ref))) <= 1e-10 * float(jnp.max(jnp.abs(g_ref)))
+
+
+def test_row_blocked_handles_operations_across_particles():
+    """Operations that are not row-local (a sum over particles, a cumulative sum, a gather of a
+    value the same function computed from the pairs) are evaluated over all rows; the result equals
+    the unblocked function exactly where no pair sum is reordered."""
+    from sph.pairs import row_blocked
+
+    n, k = 50, 6
+    rng = np.random.default_rng(0)
+    idx = jnp.asarray(rng.integers(0, n + 1, size=(n, k)), jnp.int32)  # n = padding
+    x = jnp.asarray(rng.normal(size=n))
+    v = jnp.asarray(rng.normal(size=(n, 2)))
+
+    def fn(idx, x, v):
+        j = jnp.where(idx < n, idx, 0)
+        w = jnp.where(idx < n, 1.0, 0.0)
+        s = jnp.sum(w * x[j], axis=1)                           # a pair sum (pass 1)
+        t = jnp.sum(w * s[j] * v.T[0][:, None], axis=1)          # gathers s: a second pass
+        total = jnp.sum(s)                                       # over all particles
+        c = jnp.cumsum(s * x)                                    # along the particles
+        vec = jnp.stack([w * v.T[a][j] for a in range(2)])       # a component-major pair vector
+        return s, t + total, c, jnp.sum(vec, axis=-1).T, x * 2.0
+
+    ref = jax.jit(fn)(idx, x, v)
+    for rows in (7, 13, 49):
+        out = jax.jit(row_blocked(fn, rows))(idx, x, v)
+        for a, b in zip(out, ref):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
