@@ -10,7 +10,9 @@ results/<profile>/accuracy/:
                     the Pareto front (the runs no other run beats in both error and time) drawn
   convergence.png   per problem: error against dx with the least-squares order per method, and wall
                     time against particle count with the fitted exponent
-  accuracy.md       per problem and error level the cheapest run that reaches it, and the orders
+  accuracy.md       per problem and error level the cheapest run that reaches it, and the orders;
+                    what gradient checkpointing costs (time and memory of the same gradient), read
+                    from results/bench/grad_memory.csv when bench/bench_grad_memory.py has written it
 
     python experiments/accuracy/atlas.py --profile smoke [--results results/smoke]
 """
@@ -165,7 +167,35 @@ def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
             for label, (o, e) in sorted(fits[name].items()):
                 lines.append(f"| {label} | {o:.2f} | {e:.2f} |")
         lines.append("")
+    lines += checkpointing_lines(out.parent.parent / "bench" / "grad_memory.csv")
     (out / "accuracy.md").write_text("\n".join(lines) + "\n")
+
+
+def checkpointing_lines(csv: Path) -> list:
+    """accuracy.md's section on what gradient checkpointing costs, from bench/bench_grad_memory.py's
+    table (results/bench/grad_memory.csv: the gradient of E_kin after n steps of a 2D TGV w.r.t. the
+    initial positions, plain reverse mode / sqrt(n) segments / nested). Checkpointing recomputes the
+    same forward steps, so it buys memory with time at no cost in accuracy: tests/test_gradients.py
+    checks equal gradients to round-off; here the gradient norms of the strategies are compared."""
+    lines = ["## Gradients through long rollouts: what checkpointing costs", ""]
+    if not csv.exists():
+        return lines + [f"no table {csv} (run `python bench/bench_grad_memory.py`)", ""]
+    t = pd.read_csv(csv)
+    lines += ["Same gradient, different memory and time (`bench/bench_grad_memory.py`; rss = peak resident "
+              "memory above the process's before the gradient, est = XLA's own estimate; the last column "
+              "compares the gradient's norm with the plain one where both ran).", "",
+              "| dtype | steps | checkpointing | segments | gradient [s] | rss [GB] | est [GB] | "
+              "norm / plain - 1 | status |", "|---|---|---|---|---|---|---|---|---|"]
+    for _, r in t.iterrows():
+        plain = t[(t["dtype"] == r["dtype"]) & (t["steps"] == r["steps"]) & (t["checkpoint"] == "none")]
+        dev = "-"
+        if len(plain) and np.isfinite(plain["grad_norm"].iloc[0]) and np.isfinite(r.get("grad_norm", np.nan)):
+            dev = f"{r['grad_norm'] / plain['grad_norm'].iloc[0] - 1:.1e}"
+        fmt = lambda k, f: (f.format(r[k]) if k in r and pd.notna(r[k]) else "-")  # noqa: E731
+        lines.append(f"| {r['dtype']} | {int(r['steps'])} | {r['checkpoint']} | {fmt('segments', '{:.0f}')} | "
+                     f"{fmt('run_s', '{:.3g}')} | {fmt('rss_GB', '{:.3g}')} | {fmt('est_GB', '{:.3g}')} | {dev} | "
+                     f"{r.get('status', '')} |")
+    return lines + [""]
 
 
 def build(atlas: "S.Atlas", results) -> Path:
