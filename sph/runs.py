@@ -42,7 +42,7 @@ NUMBER_NEUTRAL = frozenset({"sph.io", "sph.runs", "sph.xdmf", "sph.cli", "sph.an
 SOLVER_MODULES = ("sph.solver", "sph.simulate")
 """Where every run's code closure starts: the assembled step and the driver that advances it."""
 
-RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "dx", "dim", "dtype", "n_particles",
+RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
                   "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb")
 """The fixed columns of a run record; the run's error metrics follow as err_<name>."""
 
@@ -322,7 +322,7 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
     wall = float(meta.get("wall_s", np.nan))
     rec = {"experiment": experiment, "target": target, "method": method,
            "effects": "+".join(meta.get("effects", [])) or "standard", "kernel": meta.get("kernel", ""),
-           "dx": float(meta["dx"]), "dim": int(meta["dim"]), "dtype": meta["dtype"],
+           "h_factor": float((meta.get("numerics") or {}).get("h_factor", np.nan)), "dx": float(meta["dx"]), "dim": int(meta["dim"]), "dtype": meta["dtype"],
            "n_particles": int(meta["num_particles_max"]), "n_steps": n_steps, "dt": float(meta["dt"]),
            "t_end": float(meta["t_end"]), "wall_s": wall, "compile_s": float(meta.get("compile_s", np.nan)),
            "ms_per_step": 1e3 * wall / n_steps if n_steps else np.nan,

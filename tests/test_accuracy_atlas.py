@@ -107,3 +107,18 @@ def test_checkpointing_section_compares_each_strategy_with_the_plain_gradient(tm
     assert cells[0][7] == "0.0e+00" and cells[1][7] == "3.0e-13"
     assert cells[3][7] == "-" and cells[3][4] == "186"
     assert any("bench_grad_memory.py" in line for line in A.checkpointing_lines(tmp_path / "missing.csv"))
+
+
+def test_kernel_entries_with_their_own_smoothing_length():
+    """A sweep kernel "name@factor" runs tgv2d with numerics.h_factor = factor, into its own folder;
+    a bad entry fails naming the key."""
+    atlas = S.load("smoke", overrides={"tgv": {"kernels": ["quintic", "wendland_c2@1.5"]}})
+    exp = R.tgv_experiment(atlas, "wendland_c2@1.5", "float64")
+    assert exp.numerics.kernel == "wendland_c2" and exp.numerics.h_factor == 1.5
+    base = R.tgv_experiment(atlas, "quintic", "float64").numerics.h_factor
+    assert base == 1.0
+    assert S.tgv_results("r", "wendland_c2@1.5", "float32").name == "wendland_c2_h1.5_float32"
+    assert S.tgv_results("r", "quintic", "float32").name == "quintic_float32"
+    for bad in ("wendland_c2@", "wendland_c2@-1", "wendland_c2@x", "cubic@1.5"):
+        with pytest.raises(sph_runs.ConfigError, match=r"tgv\.kernels\[1\]"):
+            S.load("smoke", overrides={"tgv": {"kernels": ["quintic", bad]}})

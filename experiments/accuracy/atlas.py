@@ -76,6 +76,9 @@ def problem_table(runs: pd.DataFrame, atlas: "S.Atlas", name: str) -> pd.DataFra
     t = runs[(runs["experiment"] == exp) & runs[col].notna()].copy()
     t["error"] = t[col].abs()
     kern = t["kernel"].fillna("").astype(str)
+    if "h_factor" in t:  # a smoothing length other than h = dx is part of the family's name
+        h = pd.to_numeric(t["h_factor"], errors="coerce")
+        kern = kern + np.where(h.notna() & (h != 1.0) & (kern != ""), " h=" + h.map("{:g}".format) + "dx", "")
     t["label"] = t["method"].astype(str) + np.where(kern != "", " " + kern, "") + " " + t["dtype"].astype(str)
     return t[t["error"] > 0].reset_index(drop=True)
 
@@ -100,19 +103,60 @@ def fitted_order(x, y) -> float:
     return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0])
 
 
+METHOD_COLORS = {"sph": "C0", "tvf": "C2", "riemann": "C3"}
+KERNEL_MARKERS = {"quintic": "o", "wendland_c2": "s", "wendland_c4": "^"}
+SPARE_COLORS, SPARE_MARKERS = ["C1", "C4", "C5", "C6", "C7", "C8", "C9"], "DvP*X<>ph"
+
+
+def family_styles(t: pd.DataFrame) -> dict:
+    """label -> matplotlib style of each run family of a problem table: colour by method, marker by
+    kernel (and smoothing length), filled for float64, open for float32; and the legend entries."""
+    styles, colors, markers = {}, dict(METHOD_COLORS), dict(KERNEL_MARKERS)
+    for label, g in t.groupby("label"):
+        r = g.iloc[0]
+        method = str(r["method"])
+        kernel = label[len(method):].rsplit(" ", 1)[0].strip()  # "kernel [h=..dx]" between method and dtype
+        if method not in colors:
+            colors[method] = SPARE_COLORS[len([m for m in colors if m not in METHOD_COLORS]) % len(SPARE_COLORS)]
+        if kernel not in markers:
+            markers[kernel] = SPARE_MARKERS[len([k for k in markers if k not in KERNEL_MARKERS]) % len(SPARE_MARKERS)]
+        f32 = str(r["dtype"]) == "float32"
+        styles[label] = dict(color=colors[method], marker=markers[kernel], mfc="none" if f32 else colors[method],
+                             ls="--" if f32 else "-", method=method, kernel=kernel, dtype=str(r["dtype"]))
+    return styles
+
+
+def style_legend(ax, styles: dict, extra=()):
+    """One legend of methods (colour), kernels (marker) and dtypes (filled / open)."""
+    from matplotlib.lines import Line2D
+
+    handles = list(extra)
+    methods = {st["method"]: st["color"] for st in styles.values()}
+    kernels = {st["kernel"]: st["marker"] for st in styles.values()}
+    handles += [Line2D([], [], color=c, lw=3, label=m) for m, c in methods.items()]
+    handles += [Line2D([], [], color="0.3", marker=mk, ls="none", label=k or "(no kernel)") for k, mk in kernels.items()]
+    dtypes = {st["dtype"] for st in styles.values()}
+    for d, mfc in (("float64", "0.3"), ("float32", "none")):
+        if d in dtypes and len(dtypes) > 1:
+            handles.append(Line2D([], [], color="0.3", marker="o", mfc=mfc, ls="none", label=d))
+    ax.legend(handles=handles, fontsize=6)
+
+
 def plot_accuracy(tables: dict, out: Path):
     names = [n for n, t in tables.items() if len(t)]
     fig, axes = plt.subplots(1, max(1, len(names)), figsize=(4.6 * max(1, len(names)), 4.0), squeeze=False,
                              constrained_layout=True)
     for ax, name in zip(axes[0], names):
         t = tables[name]
-        for k, (label, g) in enumerate(t.groupby("label")):
-            ax.loglog(g["wall_s"], g["error"], "os^vDP*X<>"[k % 10], ls="none", label=label, alpha=0.8)
+        styles = family_styles(t)
+        for label, g in t.groupby("label"):
+            st = styles[label]
+            ax.loglog(g["wall_s"], g["error"], st["marker"], color=st["color"], mfc=st["mfc"], ls="none", alpha=0.8)
         p = pareto(t)
-        ax.loglog(p["wall_s"], p["error"], "k-", lw=1, alpha=0.6, label="Pareto front")
+        front, = ax.loglog(p["wall_s"], p["error"], "k-", lw=1, alpha=0.6, label="Pareto front")
         ax.set(title=name, xlabel="wall time of the run [s]", ylabel=PROBLEMS[name][2])
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
+        style_legend(ax, styles, extra=[front])
     for ext in ("png", "pdf"):
         fig.savefig(out / f"accuracy.{ext}", dpi=130)
     plt.close(fig)
@@ -126,19 +170,22 @@ def plot_convergence(tables: dict, out: Path) -> dict:
     fits = {}
     for j, name in enumerate(names):
         t = tables[name]
+        styles = family_styles(t)
         fits[name] = {}
         for label, g in t.groupby("label"):
             order = fitted_order(g["dx"], g["error"])
             expo = fitted_order(g["n_particles"], g["wall_s"])
             fits[name][label] = (order, expo)
             g = g.sort_values("dx")
-            axes[0, j].loglog(g["dx"], g["error"], "o-", label=f"{label}: order {order:.2f}")
-            axes[1, j].loglog(g["n_particles"], g["wall_s"], "o-", label=f"{label}: N^{expo:.2f}")
-        axes[0, j].set(title=name, xlabel="dx", ylabel="error")
+            st = styles[label]
+            kw = dict(color=st["color"], marker=st["marker"], mfc=st["mfc"], ls=st["ls"], ms=4, lw=1, alpha=0.8)
+            axes[0, j].loglog(g["dx"], g["error"], **kw)
+            axes[1, j].loglog(g["n_particles"], g["wall_s"], **kw)
+        axes[0, j].set(title=f"{name} (orders: accuracy.md)", xlabel="dx", ylabel="error")
         axes[1, j].set(xlabel="particles N", ylabel="wall time [s]")
         for ax in axes[:, j]:
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=6)
+            style_legend(ax, styles)
     fig.savefig(out / "convergence.png", dpi=130)
     plt.close(fig)
     return fits

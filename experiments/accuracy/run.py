@@ -21,7 +21,8 @@ except ImportError:  # run as a script: its folder is on sys.path
 
 
 def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> "tgv_settings.Experiment":
-    """The tgv2d experiment of one (kernel, dtype) of the sweep, validated as tgv2d's own config."""
+    """The tgv2d experiment of one (kernel entry, dtype) of the sweep, validated as tgv2d's own config
+    (a kernel entry "name@<factor>" also sets numerics.h_factor)."""
     sw = atlas.tgv
     base = tgv_settings.load(sw.base_profile)
     names = [m.name for m in base.methods]
@@ -31,8 +32,12 @@ def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> "tgv_settings.E
                               f"profile ({names})")
     methods = [{"name": m.name, "effects": to_mapping(m.effects)} for m in base.methods
                if m.name in sw.methods]
+    name, h_factor = S.kernel_spec(kernel)
+    numerics = {"kernel": name, "dtype": dtype}
+    if h_factor is not None:
+        numerics["h_factor"] = h_factor
     return tgv_settings.load(sw.base_profile, overrides={
-        "numerics": {"kernel": kernel, "dtype": dtype}, "methods": methods, "dx": list(sw.dx),
+        "numerics": numerics, "methods": methods, "dx": list(sw.dx),
         "t_end": sw.t_end, "frames": sw.frames, "eval_times": [sw.t_end / 2, sw.t_end]})
 
 

@@ -20,6 +20,9 @@ class TgvSweep:
     """The TGV sweep: every method x dx x dtype x kernel, run with experiments/tgv2d.
 
     base_profile  profile of experiments/tgv2d/config.yaml supplying material, numerics, relaxation
+    kernels       kernel names (sph.kernels.KERNELS), each optionally with its own smoothing length
+                  h = <factor> dx as "name@<factor>" (e.g. "wendland_c2@1.5"); without it the base
+                  profile's numerics.h_factor
     error         the err_<name> column of the TGV records that the atlas plots
     """
 
@@ -38,7 +41,7 @@ class TgvSweep:
         for i, d in enumerate(self.dtypes):
             require(d in DTYPES, f"tgv.dtypes[{i}]", f"{d!r} is not one of {sorted(DTYPES)}")
         for i, k in enumerate(self.kernels):
-            require(k in KERNELS, f"tgv.kernels[{i}]", f"{k!r} is not one of {sorted(KERNELS)}")
+            kernel_spec(k, f"tgv.kernels[{i}]")
         require(bool(np.isfinite(self.t_end)) and self.t_end > 0, "tgv.t_end", f"must be finite and positive, got {self.t_end}")
         require(self.frames >= 1, "tgv.frames", f"must be >= 1, got {self.frames}")
 
@@ -67,6 +70,24 @@ def out_dir(results) -> Path:
     return Path(results) / NAME
 
 
+def kernel_spec(spec: str, where: str = "tgv.kernels") -> tuple[str, Optional[float]]:
+    """("name", h_factor or None) of a sweep kernel entry "name" or "name@<h_factor>"."""
+    name, _, h = str(spec).partition("@")
+    require(name in KERNELS, where, f"{name!r} is not one of {sorted(KERNELS)}")
+    if not _:
+        return name, None
+    try:
+        h_factor = float(h)
+    except ValueError:
+        h_factor = float("nan")
+    require(bool(np.isfinite(h_factor)) and h_factor > 0, where,
+            f"{spec!r}: the smoothing length after '@' must be a positive number (h = factor x dx)")
+    return name, h_factor
+
+
 def tgv_results(results, kernel: str, dtype: str) -> Path:
-    """The results root of one (kernel, dtype) tgv2d experiment of the sweep."""
-    return out_dir(results) / "tgv" / f"{kernel}_{dtype}"
+    """The results root of one (kernel entry, dtype) tgv2d experiment of the sweep: <name>_<dtype>,
+    or <name>_h<factor>_<dtype> for an entry with its own smoothing length."""
+    name, h_factor = kernel_spec(kernel)
+    tag = name if h_factor is None else f"{name}_h{h_factor:g}"
+    return out_dir(results) / "tgv" / f"{tag}_{dtype}"
