@@ -29,6 +29,7 @@ help:
 	@echo "make sitl-cost [PROFILE=smoke]  Solver-in-the-Loop accuracy-cost plane: MSE_20 vs time per coarse step"
 	@echo "make <folder>                   any experiments/<folder> with a tgv2d-style rules.mk (e.g. a copy of tgv2d)"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
+	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"
 	@echo "make test                       test suite"
 	@echo "make setup / setup-lb           core environment / LagrangeBench environment"
 
