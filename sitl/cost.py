@@ -279,7 +279,7 @@ def record(exp: S.Experiment, p: Point, row: dict) -> dict:
     frame_dt = d.dt * d.write_every
     fixed = {"experiment": "sitl", "target": "sitl-cost", "method": p.method,
              "effects": "standard" if p.kind != "gns" else "", "kernel": "quintic" if p.kind != "gns" else "",
-             "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
+             "h_factor": 1.0 if p.kind != "gns" else float("nan"), "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
              "dt": frame_dt, "t_end": n * frame_dt, "wall_s": n * s, "compile_s": row["compile_s"],
              "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb()}
     rec = {c: fixed[c] for c in runs.RECORD_COLUMNS}
