@@ -383,11 +383,13 @@ def test_main_guard_prints_simulation_errors_and_exits_3(capsys):
 
 def _study(tmp_path):
     """A copy of tgv2d (a folder is a template) whose smoke profile is one small, long run: 100
-    particles, ~8000 steps, a frame every 80 steps (seconds of compute, so a signal lands mid-run)."""
+    particles, ~22000 steps, a frame every 220 steps (several seconds of compute even with the
+    faster solver, so that a signal sent at 1/4 or 1/2 lands mid-run, not during the process's exit:
+    at ~8800 steps a CI run once finished before its SIGINT took effect and exited 0)."""
     study = tmp_path / "study"
     shutil.copytree(ROOT / "experiments" / "tgv2d", study, ignore=shutil.ignore_patterns("__pycache__"))
     cfg = yaml.safe_load((study / "config.yaml").read_text())
-    cfg["profiles"]["smoke"].update(dx=[0.1], t_end=20.0, frames=100, eval_times=[1.0],
+    cfg["profiles"]["smoke"].update(dx=[0.1], t_end=50.0, frames=100, eval_times=[1.0],
                                     methods=[{"name": "tvf", "effects": {"tvf": True}}],
                                     relaxation={"steps": 20, "quench_every": 10})
     (study / "config.yaml").write_text(yaml.safe_dump(cfg))
