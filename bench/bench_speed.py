@@ -25,6 +25,7 @@ import sys
 
 CASES = {  # name -> (dim, particles per side, steps per chunk)
     "2d_dx0.02": (2, 50, 200),
+    "2d_dx0.0125": (2, 80, 150),
     "2d_dx0.01": (2, 100, 100),
     "3d_20": (3, 20, 22),
     "3d_32": (3, 32, 11),

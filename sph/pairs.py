@@ -132,8 +132,10 @@ def pair_geometry(r, idx, domain, margin, kernel) -> Pairs:
 # that is not row-local (a reduction over particles, a sort, a cond): its local operands are
 # materialised and it runs over all N particles. Every row is computed with exactly the operations
 # of the unblocked function, so results agree to round-off (summation order within XLA's fusions).
-# Blocks are B consecutive rows; the last block is shifted back to end at row N (it overlaps the one
-# before, and only its new rows are kept), so no row is padded or fabricated.
+# Blocks are B consecutive rows, B evened out over the blocks (ceil(N / ceil(N / B)): 6400 rows at a
+# target of 5242 are two blocks of 3200, not 5242 + 5242); when B does not divide N, the last block is
+# shifted back to end at row N (it overlaps the one before, and only its new rows are kept), so no
+# row is padded or fabricated.
 
 BLOCK_PAIRS = 1 << 18
 """Target neighbour slots per block (B = BLOCK_PAIRS // K rows); a list with at most one block's
@@ -366,6 +368,7 @@ def row_blocked(fn, block_rows: int, local_argnums=(0,)):
         b = int(block_rows)
         if b >= n:
             return fn(*args)
+        b = -(-n // -(-n // b))   # even blocks: the fewest blocks of <= block_rows rows, equal sizes
         closed, out_shape = jax.make_jaxpr(fn, return_shape=True)(*args)
         flat_args = jax.tree_util.tree_leaves(args)
         local_in = set()

@@ -346,3 +346,21 @@ def test_row_blocked_handles_operations_across_particles():
         out = jax.jit(row_blocked(fn, rows))(idx, x, v)
         for a, b in zip(out, ref):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+
+
+def test_row_blocked_evens_out_its_blocks():
+    """A row count just above the block target is split into equal blocks (50 rows at a target of 49:
+    two blocks of 25, not 49 + 49 with 48 rows computed twice)."""
+    from sph.pairs import row_blocked
+
+    n, k = 50, 6
+    idx = jnp.asarray(np.random.default_rng(1).integers(0, n, size=(n, k)), jnp.int32)
+    x = jnp.linspace(0.0, 1.0, n)
+
+    def fn(idx, x):
+        return jnp.sum(x[idx] * x[:, None], axis=1)
+
+    text = str(jax.make_jaxpr(row_blocked(fn, 49))(idx, x))
+    assert "length=2" in text and "[25,6]" in text and "[49,6]" not in text
+    np.testing.assert_allclose(np.asarray(jax.jit(row_blocked(fn, 49))(idx, x)), np.asarray(fn(idx, x)),
+                               rtol=1e-14)
