@@ -112,6 +112,19 @@ def test_reference_early_values(exp):
     assert 4.0 < t_peak < 6.0 and 0.012 < h_peak < 0.014
 
 
+
+def test_deviations_leave_out_frames_past_the_reference(exp):
+    """A run ends at the first step past t_end (20^3: t = 10.0031 for t_end 10, one dt beyond the
+    reference's last row): the deviations cover the frames within the reference's span. Sampled
+    from the reference itself, every deviation is zero."""
+    ref = S.load_reference(exp)
+    t = np.append(ref["t"], ref["t"][-1] + 0.0031)
+    e = np.append(ref["e_kin"], ref["e_kin"][-1])
+    s = {"t": t, "e_kin": e, "t_mid": t, "dissipation": np.append(ref["dissipation"], 0.0), "stencil": 1}
+    out = A.deviations(exp, ref, s)
+    assert out["e_kin_rms_dev"] == 0.0 and out["dissipation_max_dev"] == 0.0
+    assert out["e_kin_end"] == ref["e_kin"][-1] and out["peak_t_err"] == 0.0
+
 # -- the runs -----------------------------------------------------------------------------------------------
 def test_initial_energy_is_one_eighth(finished):
     # a random (Monte-Carlo) placement of 1728 particles would carry a standard error of

@@ -67,8 +67,12 @@ def early_rate(t, e, window: float) -> float:
 
 
 def deviations(exp: "S.Experiment", ref: dict, s: dict) -> dict:
-    """Deviation of one run's series `s` (energy_series) from the reference over its frames."""
-    t, e, tm, d = s["t"], s["e_kin"], s["t_mid"], s["dissipation"]
+    """Deviation of one run's series `s` (energy_series) from the reference over its frames within the
+    reference's span (a run ends at the first step at or past t_end, up to one dt beyond it: 10.0031
+    at 20^3; the frames past the reference's last time are left out)."""
+    t_ref_end = float(ref["t"][-1]) * (1 + 1e-9)
+    t, e = s["t"][s["t"] <= t_ref_end], s["e_kin"][s["t"] <= t_ref_end]
+    tm, d = s["t_mid"][s["t_mid"] <= t_ref_end], s["dissipation"][s["t_mid"] <= t_ref_end]
     re, rd = reference_on(ref, t)["e_kin"], reference_on(ref, tm)["dissipation"]
     t_end = float(t[-1])
     ref_t, ref_h = reference_peak(ref, t_end)
