@@ -9,7 +9,7 @@ needs beyond the Python process). Fits the exponent b of time ~ N^b per dimensio
 
 Writes results/bench/scaling.csv and scaling.png; prints a table.
 
-    python bench/bench_scaling.py                    # 2D 32^2 .. 512^2, 3D 16^3 .. 50^3
+    python bench/bench_scaling.py                    # 2D 32^2 .. 1000^2, 3D 20^3 .. 63^3
     python bench/bench_scaling.py --quick            # a few small sizes
     python bench/bench_scaling.py --backend jax_md   # the reference search
 """
@@ -160,8 +160,8 @@ def main():
     ap.add_argument("--out", default="results/bench")
     args = ap.parse_args()
     sph.precision.enable_x64()
-    sides2d = [32, 64] if args.quick else [32, 64, 128, 256, 512]
-    sides3d = [12, 16] if args.quick else [20, 32, 40, 50]
+    sides2d = [32, 64] if args.quick else [32, 64, 128, 256, 512, 1000]   # 10^3 ... 10^6 particles
+    sides3d = [12, 16] if args.quick else [20, 32, 40, 50, 63]            # 8 10^3 ... 2.5 10^5
     if args.sides2d is not None:
         sides2d = [int(s) for s in args.sides2d.split(",") if s]
     if args.sides3d is not None:
