@@ -118,6 +118,9 @@ class Numerics:
     neighbor_search        "cell_sort" (default: the sort-based cell list built for this solver,
                            sph.cell_list; the same pairs as jax-md's, faster in 2D and 3D) or
                            "jax_md" (jax-md's cell list, the reference implementation)
+    reorder_every          sort the fluid particles by cell every that many steps (at the next frame of
+                           `sph.simulate.run`; sph.reorder), so that neighbours stay close in memory as
+                           the flow mixes them; 0 = keep the scene's order. Outputs keep the scene's order.
     """
 
     kernel: str = "quintic"
@@ -133,6 +136,7 @@ class Numerics:
     skin_factor: float = 0.5
     capacity_multiplier: float = 1.25
     neighbor_search: str = "cell_sort"
+    reorder_every: int = 0
 
     def __post_init__(self):
         require_finite(self, "numerics")
@@ -149,5 +153,7 @@ class Numerics:
         require(self.skin_factor >= 0, "numerics.skin_factor", f"must be >= 0, got {self.skin_factor}")
         require(self.neighbor_search in NEIGHBOR_SEARCHES, "numerics.neighbor_search",
                 f"{self.neighbor_search!r} is not one of {list(NEIGHBOR_SEARCHES)}")
+        require(isinstance(self.reorder_every, int) and self.reorder_every >= 0, "numerics.reorder_every",
+                f"must be a whole number of steps >= 0 (0 = never), got {self.reorder_every!r}")
         require(self.capacity_multiplier >= 1, "numerics.capacity_multiplier",
                 f"must be >= 1, got {self.capacity_multiplier}")

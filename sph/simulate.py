@@ -20,7 +20,16 @@ the step, the time, the particle, its position and the likely cause (dt against 
 state the guard does not see (another field non-finite) is found at the end of the chunk and
 located by bisecting the chunk from its last good state. The writer keeps the last good frame and
 its checkpoint, and the message says where.
+
+Particle order (`reorder_every`, default numerics.reorder_every; `sph.reorder`): every that many
+steps (at the next frame) the fluid particles are sorted by cell among their slots and the
+neighbour list is rebuilt, so that the gathers of the pair sums stay local as the flow mixes the
+particles. Everything the run hands out (frames, checkpoints, callbacks, the returned state and
+list) is in the scene's order; the permuted state lives only between the chunks. A chunk that fails
+in a permuted order is retried from its start in the scene's order, so that every diagnosis names
+the scene's particle numbers.
 """
+import dataclasses
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -30,7 +39,7 @@ import jax
 import numpy as np
 from tqdm.auto import tqdm
 
-from . import diagnostics
+from . import diagnostics, reorder
 from .diagnostics import SimulationError
 from .io import SERIES
 from .rollout import advance, make_chunk
@@ -60,6 +69,7 @@ class RunResult:
     write_every: int
     state: ParticleState
     nbrs: object
+    n_reorders: int = 0
 
     @property
     def ms_per_step(self) -> float:
@@ -102,7 +112,8 @@ def resume(solver, writer):
 
 def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progress: bool = True,
         step0: int = 0, *, n_steps: Optional[int] = None, callback: Optional[Callable] = None,
-        desc: Optional[str] = None, max_reallocations: int = 10, u_limit: Optional[float] = None) -> RunResult:
+        desc: Optional[str] = None, max_reallocations: int = 10, u_limit: Optional[float] = None,
+        reorder_every: Optional[int] = None) -> RunResult:
     """Advance from global step `step0` to `n_steps` (default `solver.n_steps(t_end)`) in chunks of
     `write_every` steps (the last one may be shorter), recording a frame after each chunk.
 
@@ -112,6 +123,8 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     `u_limit`: treat a fluid speed above it as a blow-up; None (default) = the artificial sound
     speed `solver.c_ref` (a WCSPH flow is meaningless long before Ma = 1); math.inf switches the
     speed check off (non-finite fields and particles leaving the domain still stop the run).
+    `reorder_every`: sort the particles by cell every that many steps (None: numerics.reorder_every;
+    0: never); results equal the unsorted run's to round-off (the pair sums' order changes).
     """
     if write_every < 1:
         raise ValueError(f"write_every must be >= 1, got {write_every}")
@@ -124,6 +137,13 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
         u_limit = solver.c_ref
     guard = solver.guard.with_limit(u_limit) if solver.guard is not None else None
     chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
+    if reorder_every is None:
+        reorder_every = solver.numerics.reorder_every
+    if reorder_every < 0:
+        raise ValueError(f"reorder_every must be >= 0, got {reorder_every}")
+    movable = reorder.movable_mask(solver.scene) if reorder_every else None
+    rebuild = _CompiledChunk(jax.jit(solver.neighbors.update)) if reorder_every else None
+    order, since, n_reorders = None, 0, 0  # order[i]: the scene's number of the particle in slot i
     diag_fn = jax.jit(partial(diagnostics.summary, rho_ref=rho_ref))
 
     frames = {k: [] for k in SERIES}
@@ -149,6 +169,7 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
         for k, v in (("time", t), ("step", step), ("u_max", d["u_max"]), ("e_kin", d["e_kin"]),
                      ("density_error", d["density_error"])):
             frames[k].append(v)
+        state = reorder.restore(state, order)
         if writer is not None:
             writer.append(state, step, t, d)
             writer.save_checkpoint(state, step, t, wall_s=wall_prev + wall,
@@ -169,7 +190,9 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     # Compile without advancing: lower + compile fills the cache that the calls below hit.
     if step0 < n_total:
         chunk.compile(state, nbrs, step0, min(write_every, n_total - step0))
-    compile_s += chunk.compile_s
+        if rebuild is not None:
+            rebuild.compile(state.r, nbrs)
+    compile_s += chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0)
     chunk.compile_s = 0.0
 
     step = step0
@@ -178,35 +201,59 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     try:
         while step < n_total:
             n = min(write_every, n_total - step)
-            t0, c0 = time.perf_counter(), chunk.compile_s
+            t0, c0 = time.perf_counter(), chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0)
+            if reorder_every and since >= reorder_every:
+                perm = reorder.cell_permutation(state.r, movable, solver.scene.dx)
+                state, order = reorder.permute(state, perm), reorder.compose(order, perm)
+                nbrs = _rebuilt(solver.neighbors, rebuild, state.r, nbrs)
+                since, n_reorders = 0, n_reorders + 1
             try:
                 new_state, new_nbrs, r = advance(chunk, solver.neighbors, state, nbrs, step, n, max_reallocations)
                 jax.block_until_ready(new_state)
                 d = {k: v.item() for k, v in diag_fn(new_state).items()}
                 bad, error = _is_bad(d, u_limit), None
             except SimulationError as e:  # the guard refused a step (diagnosed), or overflow kept recurring
-                raise _with_checkpoint(e, solver, step, writer) from None
+                if order is not None:
+                    bad, error = True, e
+                else:
+                    raise _with_checkpoint(e, solver, step, writer) from None
             except RuntimeError as e:  # repeated neighbour overflow without a guard
                 bad, error = True, e
-            wall += time.perf_counter() - t0 - (chunk.compile_s - c0)
+            wall += time.perf_counter() - t0 - (chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0) - c0)
+            if bad and order is not None:  # retry from the chunk's start in the scene's order (diagnoses name
+                state, order, since = reorder.restore(state, order), None, 0  # the scene's particles)
+                nbrs = solver.neighbors.allocate(state.r)
+                continue
             if bad:
                 raise _locate_blowup(solver, chunk, diag_fn, state, nbrs, step, n, writer, error, u_limit)
             reallocs += r
-            state, nbrs, step = new_state, new_nbrs, step + n
+            state, nbrs, step, since = new_state, new_nbrs, step + n, since + n
             record(state, step, d)
             bar.update(n)
             bar.set_postfix(t=f"{step * dt:.3g}", u_max=f"{d['u_max']:.4g}", refresh=False)
             if callback is not None:
-                callback(step, step * dt, state)
+                callback(step, step * dt, reorder.restore(state, order))
     finally:
         bar.close()
+    if order is not None:
+        state = reorder.restore(state, order)
+        nbrs = _rebuilt(solver.neighbors, rebuild, state.r, nbrs)
 
     arrays = {k: np.asarray(v) for k, v in frames.items()}
     return RunResult(t=arrays["time"], step=arrays["step"].astype(np.int64), u_max=arrays["u_max"],
                      e_kin=arrays["e_kin"], density_error=arrays["density_error"], wall_s=wall,
                      compile_s=compile_s + chunk.compile_s, n_steps=step - step0, n_reallocations=reallocs,
                      wall_s_total=wall_prev + wall, n_reallocations_total=realloc_prev + reallocs,
-                     step_end=step, write_every=write_every, state=state, nbrs=nbrs)
+                     step_end=step, write_every=write_every, state=state, nbrs=nbrs, n_reorders=n_reorders)
+
+
+def _rebuilt(neighbors, rebuild, r, nbrs):
+    """The list rebuilt at positions r with its capacities (a fresh allocation if they no longer
+    suffice): its reference positions are moved past the skin threshold so that `update` rebuilds."""
+    shift = neighbors.skin if neighbors.skin > 0 else 0.5 * neighbors.cutoff
+    stale = dataclasses.replace(nbrs, reference_position=r.at[0, 0].add(shift))
+    new = rebuild(r, stale)
+    return neighbors.allocate(r) if bool(new.did_buffer_overflow) else new
 
 
 def _is_bad(d: dict, u_limit: Optional[float]) -> bool:
