@@ -37,7 +37,7 @@ def parse(variant):
             block = int(value) or (1 << 62)
             continue
         field = sph.Numerics.__dataclass_fields__[key]
-        kw[key] = value if field.type in (str, "str") else float(value)
+        kw[key] = value if field.type in (str, "str") else int(value) if field.type in (int, "int") else float(value)
     return kw, block
 
 
