@@ -105,7 +105,7 @@ def profile(scene, method, steps, repeats, numerics):
     # a step that does not rebuild: the list's reference is the position the step moves to
     r_next = solver.step_fn(state, nbrs, 1)[0].r
     nb_next = dataclasses.replace(nbrs, reference_position=r_next)
-    out["step_nb"] = timed(step, state, nb_next, 1, repeats=repeats)
+    out["step_nb"] = timed(jax.jit(solver.step_fn), state, nb_next, 1, repeats=repeats)
     return out
 
 
