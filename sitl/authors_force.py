@@ -1,0 +1,92 @@
+"""Table 1's "solver only" with the authors' body-force bug, to explain the paper's number.
+
+The authors' SitL solver evaluated LagrangeBench's per-particle RPF force_fn(r) (r of shape (dim,))
+on the whole (N, 2) position array: `r[1]` is then particle 1's position vector, and the result is one
+(2,) vector broadcast to every particle, g = (+1, 0) wherever particle 1 is (its x < 1 always). So the
+upper half (y >= 1), whose force is -1 in the data, was pushed the wrong way. This script evaluates
+our "solver only" module (sitl/model.py, correction off) exactly as sitl/evaluate.py does, on the
+same test windows with LagrangeBench's `infer`, once with the data's per-particle force and once with
+that uniform force, so the two Table 1 columns can be put side by side.
+
+Writes results/<profile>/sitl/metrics/solver_authors_force.json (never read by Table 1's rules).
+
+    .venv-lb/bin/python sitl/authors_force.py --profile cpu
+"""
+import argparse
+import dataclasses
+import json
+import sys
+import warnings
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from sitl import common as C  # noqa: E402  (sets up LagrangeBench first)
+
+import haiku as hk  # noqa: E402
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+from lagrangebench import infer  # noqa: E402
+from lagrangebench.evaluate import averaged_metrics  # noqa: E402
+
+import sph  # noqa: E402
+from sitl import generate  # noqa: E402
+from sitl import model as M  # noqa: E402
+from sitl import settings as S  # noqa: E402
+from sitl.evaluate import KEYS  # noqa: E402
+from sph.forces import ConstantForce  # noqa: E402
+
+
+def uniform_force_model(exp: S.Experiment, data_train, case_fns):
+    """The solver-only module whose body force is the authors' uniform (+g, 0)."""
+    meta = data_train.metadata
+    setup = M.make_setup(meta, case_fns.normalization_stats, data_train[0][0][:, 0], exp.model.substeps,
+                         exp.train.dtype, exp.model.capacity_multiplier)
+    scene = dataclasses.replace(setup.solver.scene, body_force=ConstantForce((float(meta["g_ext_magnitude"]), 0.0)))
+    with warnings.catch_warnings():  # the coarse substep exceeds the CFL limit by design, as in model.py
+        warnings.filterwarnings("ignore", message=".*exceeds the .* time-step limit")
+        solver = sph.build_solver(scene, setup.solver.numerics)
+    r_sample = jnp.asarray(data_train[0][0][:, 0], setup.dtype)
+    setup = dataclasses.replace(setup, solver=solver, sph_nbrs=solver.neighbors.allocate(r_sample))
+    return hk.without_apply_rng(hk.transform_with_state(lambda x: M.SolverInTheLoop(setup, correction=False)(x)))
+
+
+def evaluate(exp: S.Experiment, results, kind: str) -> dict:
+    path = generate.ready(exp, results)
+    data_train, _, data_test = C.datasets(exp, path)
+    case = C.case(exp, data_train)
+    model = uniform_force_model(exp, data_train, case) if kind == "uniform" else C.model(exp, "solver", data_train, case)
+    pos, ptype = data_test[0]
+    sample = (jnp.asarray(pos[:, :exp.model.input_seq_length]), jnp.asarray(ptype))
+    features, _ = case.allocate_eval(sample)
+    params, state = model.init(jax.random.PRNGKey(0), (features, sample[1]))
+    ev = exp.eval
+    n_trajs = data_test.num_samples if ev.n_trajs == -1 else min(ev.n_trajs, data_test.num_samples)
+    metrics = infer(model, case, data_test, params=params, state=state,
+                    cfg_eval_infer={"n_trajs": n_trajs, "metrics_stride": ev.metrics_stride, "batch_size": ev.batch_size,
+                                    "metrics": ["mse", "e_kin", "sinkhorn"], "out_type": "none", "n_extrap_steps": 0},
+                    n_rollout_steps=ev.n_rollout_steps, seed=exp.train.seed)
+    avg = averaged_metrics(metrics)
+    return {"n_rollouts": len(metrics), **{k: float(avg[v]) for k, v in KEYS.items()}}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None)
+    args = ap.parse_args(argv)
+    exp = S.load(args.profile)
+    results = args.results or f"results/{args.profile}"
+    out = {"per_particle": evaluate(exp, results, "per_particle"), "uniform": evaluate(exp, results, "uniform")}
+    dest = S.metrics_path(results, "solver").with_name("solver_authors_force.json")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(json.dumps(out, indent=2) + "\n")
+    for k, v in out.items():
+        print(f"solver only, {k} force: MSE_5 {v['mse5']:.3g}, MSE_20 {v['mse20']:.3g}, MSE_Ekin {v['e_kin']:.3g}, "
+              f"Sinkhorn {v['sinkhorn']:.3g} over {v['n_rollouts']} rollouts", flush=True)
+    return out
+
+
+if __name__ == "__main__":
+    main()
