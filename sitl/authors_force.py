@@ -12,7 +12,6 @@ Writes results/<profile>/sitl/metrics/solver_authors_force.json (never read by T
 
     .venv-lb/bin/python sitl/authors_force.py --profile cpu
 """
-import argparse
 import dataclasses
 import json
 import sys
@@ -34,6 +33,7 @@ import sph  # noqa: E402
 from sitl import generate  # noqa: E402
 from sitl import model as M  # noqa: E402
 from sitl import settings as S  # noqa: E402
+from sitl.cli import profile_args  # noqa: E402
 from sitl.evaluate import KEYS  # noqa: E402
 from sph.forces import ConstantForce  # noqa: E402
 
@@ -72,12 +72,7 @@ def evaluate(exp: S.Experiment, results, kind: str) -> dict:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    results = args.results or f"results/{args.profile}"
+    exp, results, _ = profile_args(__doc__, argv)
     out = {"per_particle": evaluate(exp, results, "per_particle"), "uniform": evaluate(exp, results, "uniform")}
     dest = S.metrics_path(results, "solver").with_name("solver_authors_force.json")
     dest.parent.mkdir(parents=True, exist_ok=True)

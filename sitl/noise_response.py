@@ -12,7 +12,6 @@ trained mostly to cancel the solver's reaction to noise that the test rollouts n
 
     .venv-lb/bin/python sitl/noise_response.py --profile cpu [--stds 3e-4 1e-4 3e-5 1e-5]
 """
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -26,7 +25,7 @@ import numpy as np  # noqa: E402
 
 from sitl import generate  # noqa: E402
 from sitl import model as M  # noqa: E402
-from sitl import settings as S  # noqa: E402
+from sitl.cli import profile_args  # noqa: E402
 
 
 def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, dtype: str = "float32") -> list:
@@ -53,13 +52,9 @@ def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, d
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
-    ap.add_argument("--stds", type=float, nargs="+", default=None, help="default: train.noise_std and 1/3, 1/10, 1/30 of it")
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    path = generate.ready(exp, args.results or f"results/{args.profile}")
+    exp, results, args = profile_args(__doc__, argv, add=lambda ap: ap.add_argument(
+        "--stds", type=float, nargs="+", default=None, help="default: train.noise_std and 1/3, 1/10, 1/30 of it"))
+    path = generate.ready(exp, results)
     n = exp.train.noise_std
     rows = response(path, exp.model.substeps, args.stds or [n, n / 3, n / 10, n / 30])
     for r in rows:

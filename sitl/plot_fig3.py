@@ -8,7 +8,6 @@ writes results/<profile>/fig3/fig3.png and .pdf.
 
     python sitl/plot_fig3.py --profile smoke
 """
-import argparse
 import json
 import pickle
 import sys
@@ -24,6 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sitl import settings as S  # noqa: E402
+from sitl.cli import profile_args  # noqa: E402
 
 ROWS = (("truth", "ground truth"), ("solver", "solver only"), ("gns", "GNS"), ("sitl", "SitL"))
 
@@ -92,12 +92,8 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    plot(args.results or f"results/{args.profile}", exp, args.profile)
+    exp, results, args = profile_args(__doc__, argv)
+    plot(results, exp, args.profile)
 
 
 if __name__ == "__main__":

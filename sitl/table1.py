@@ -4,7 +4,6 @@ sitl/evaluate.py) and writes results/<profile>/table1/table1.csv and table1.md.
 
     python sitl/table1.py --profile smoke
 """
-import argparse
 import csv
 import json
 import sys
@@ -14,6 +13,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sitl import settings as S  # noqa: E402
+from sitl.cli import profile_args  # noqa: E402
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
     "mse5": (1.7e-7, 6.7e-9, 3.3e-9),
@@ -95,12 +95,8 @@ def write(results, models=S.MODELS, profile: str = "") -> Path:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    write(args.results or f"results/{args.profile}", exp.models, args.profile)
+    exp, results, args = profile_args(__doc__, argv)
+    write(results, exp.models, args.profile)
 
 
 if __name__ == "__main__":
