@@ -2,8 +2,9 @@
 
 The authors' SitL solver evaluated LagrangeBench's per-particle RPF force_fn(r) (r of shape (dim,))
 on the whole (N, 2) position array: `r[1]` is then particle 1's position vector, and the result is one
-(2,) vector broadcast to every particle, g = (+1, 0) wherever particle 1 is (its x < 1 always). So the
-upper half (y >= 1), whose force is -1 in the data, was pushed the wrong way. This script evaluates
+(2,) vector broadcast to every particle, so half of them got the wrong sign. Here that bug is taken
+as g = (+g, 0) for every particle (the upper half, -g in the data, pushed the wrong way; which sign
+the authors' code picked depended on one particle's position). This script evaluates
 our "solver only" module (sitl/model.py, correction off) exactly as sitl/evaluate.py does, on the
 same test windows with LagrangeBench's `infer`, once with the data's per-particle force and once with
 that uniform force, so the two Table 1 columns can be put side by side.
