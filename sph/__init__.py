@@ -9,7 +9,7 @@ xla_cpu.set_cpu_defaults()
 
 from . import precision  # noqa: F401, E402
 from .config import Effects, Material, Numerics
-from .configtools import ConfigError
+from .errors import ConfigError
 from .domain import Domain
 from .scene import Scene
 from .solver import Solver, build_solver

@@ -6,7 +6,7 @@ be finite, and each has its sign or range (see the class docstrings).
 from dataclasses import dataclass
 from typing import Optional
 
-from .configtools import require, require_finite
+from .errors import require, require_finite
 from .kernels import KERNELS
 from .precision import DTYPES
 

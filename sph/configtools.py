@@ -16,51 +16,7 @@ from typing import Optional
 
 import yaml
 
-
-class ConfigError(ValueError):
-    """A configuration value is unknown, mistyped or inconsistent; the message names the key.
-
-    Errors raised while loading a profile of a YAML file (`load_profile`) also carry `file` (the
-    YAML file), `profile` (the profile that was asked for), `origin` (the profile the offending key
-    is written in: an inherited profile, or "command line" for an override) and `key` (its path);
-    elsewhere these are None.
-    """
-
-    def __init__(self, msg: str, *, file=None, profile=None, origin=None, key=None):
-        super().__init__(msg)
-        self.file, self.profile, self.origin, self.key = file, profile, origin, key
-
-
-def require(cond: bool, key: str, msg: str) -> None:
-    if not cond:
-        raise ConfigError(f"{key}: {msg}")
-
-
-def is_finite_number(x) -> bool:
-    """True for a real number (not a bool) that is neither NaN nor infinite."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def require_finite(obj, section: str = "", allow_inf=()) -> None:
-    """Check that every number of the config dataclass `obj` is finite: its float and int fields
-    and the entries of tuple fields (None is left to the class). Named `<section>.<field>`;
-    fields in `allow_inf` may be +-inf (never NaN). For `__post_init__`, so that a config built in
-    Python (not from YAML) is checked like one loaded by `from_mapping`."""
-    prefix = f"{section}." if section else ""
-
-    def check(v, key, name):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            return
-        if math.isnan(v) or (math.isinf(v) and name not in allow_inf):
-            raise ConfigError(f"{key}: must be a finite number, got {v!r}")
-
-    for f in dataclasses.fields(obj):
-        v = getattr(obj, f.name)
-        if isinstance(v, (tuple, list)):
-            for i, x in enumerate(v):
-                check(x, f"{prefix}{f.name}[{i}]", f.name)
-        else:
-            check(v, prefix + f.name, f.name)
+from .errors import ConfigError, is_finite_number, require, require_finite  # noqa: F401  (re-exported)
 
 
 def _check_type(value, tp, key, allow_inf: bool = False):

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .configtools import ConfigError
+from .errors import ConfigError
 
 
 def _check_lattice(counts, dx) -> None:

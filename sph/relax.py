@@ -18,7 +18,7 @@ from tqdm.auto import tqdm
 
 from . import diagnostics, simulate
 from .config import Numerics
-from .configtools import require
+from .errors import require
 from .rollout import advance, make_chunk
 from .scene import Scene
 from .solver import build_solver

@@ -9,7 +9,7 @@ from typing import Optional
 import numpy as np
 
 from .config import Effects, Material
-from .configtools import ConfigError
+from .errors import ConfigError
 from .domain import Domain
 from .state import FLUID, MOVING_WALL, WALL
 

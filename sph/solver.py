@@ -41,7 +41,7 @@ import numpy as np
 from . import density, heat, momentum, riemann, walls
 from . import pairs as pairs_module
 from .config import Numerics
-from .configtools import ConfigError
+from .errors import ConfigError
 from .diagnostics import StepGuard
 from .eos import RiemannEoS, TaitEoS
 from .forces import ConstantForce

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from ..config import Effects, Material
-from ..configtools import ConfigError
+from ..errors import ConfigError
 from ..domain import Domain
 from ..lattice import cartesian, check_run_size, count
 from ..scene import Scene
