@@ -4,7 +4,7 @@ PROFILE ?= paper
 PY      := .venv/bin/python
 VENV    := .venv/.stamp
 RESULTS := results/$(PROFILE)
-# Run steps always call their run script (FORCE): the script's own cache (sph.runs) decides what
+# Run steps always call their run script (FORCE): the script's own cache (sph.harness.runs) decides what
 # re-runs, from fingerprints of the config and of exactly the code that can change the numbers, and
 # notices damaged or incomplete outputs. A run step touches its stamp only when something changed,
 # so the figures that depend on the stamp re-plot only then.

@@ -1,6 +1,6 @@
 # Gradient check, paper Fig. 1 (gradcheck/README.md): `make fig1`, `make grad-growth` [PROFILE=smoke].
 # Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see sph.runs) through sph.stamp, whose
+# always call their run script (its cache decides what re-runs, see sph.harness.runs) through sph.harness.stamp, whose
 # stamp changes only when an output changed.
 # The computations (one stamp for the AD/FD check, one for the rollout-length sweep) depend on the
 # config, settings.py, run.py and the core, so editing any of these recomputes; run.py itself reuses
@@ -13,10 +13,10 @@ GRADCHECK_OUT    := $(RESULTS)/gradcheck
 .PHONY: fig1 grad-growth
 
 $(GRADCHECK_OUT)/check.done: FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part check
+	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part check
 
 $(GRADCHECK_OUT)/growth.done: FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part growth
+	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part growth
 
 fig1: $(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv
 $(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py

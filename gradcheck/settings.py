@@ -5,7 +5,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -156,7 +157,7 @@ def fig_dir(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of the solver sources (sph/**/*.py), settings.py and run.py."""
-    return source_hash(ROOT, [HERE / "settings.py", HERE / "run.py"])
+    return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
 
 
 def check_fingerprint(exp: Experiment, case: Case, dtype: str) -> str:

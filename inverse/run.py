@@ -47,7 +47,8 @@ import optax
 import pandas as pd
 
 import sph
-from sph.configtools import digest, to_mapping
+from sph.harness.configtools import to_mapping
+from sph.harness.keys import digest
 from sph.rollout import scan_rollout
 try:
     from . import scene as cube
@@ -300,6 +301,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -7,7 +7,8 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -184,5 +185,5 @@ def fig_dir(results) -> Path:
 def fingerprint(exp: Experiment) -> str:
     """Inputs of run.py: the whole profile (path_optimizer and rmse_targets only affect the plot and
     the report, but hashing them too is harmless) and the code (sph/, settings, scene, run)."""
-    code = source_hash(ROOT, [HERE / n for n in ("settings.py", "scene.py", "run.py")])
+    code = code_fingerprint([HERE / n for n in ("settings.py", "scene.py", "run.py")])
     return digest({"experiment": to_mapping(exp), "code": code})

@@ -46,7 +46,7 @@ read from it, their time is measured here from ckp/<kind>/best. Otherwise they a
 the reason printed.
 
 Writes results/<profile>/sitl/cost.csv, cost.png (log-log MSE_20 against ms per coarse step) and a
-run record per point, sitl/cost/<name>/record.json (sph.runs' schema: experiment "sitl", err_mse20,
+run record per point, sitl/cost/<name>/record.json (sph.harness.record's schema: experiment "sitl", err_mse20,
 err_mse5, err_e_kin; wall_s is one 20-step rollout, 20 x the time per coarse step, ms_per_step the
 time per coarse step), which `make accuracy` gathers. cost.json keeps the inputs' key: a call with
 the same inputs (data, config, code, trained models' metrics) does nothing.
@@ -77,8 +77,10 @@ import numpy as np  # noqa: E402
 from sitl import generate  # noqa: E402
 from sitl import model as M  # noqa: E402
 from sitl import settings as S  # noqa: E402
-from sph import runs  # noqa: E402
-from sph.configtools import digest, to_mapping  # noqa: E402
+from sph.harness import keys, runs  # noqa: E402
+from sph.harness.configtools import to_mapping  # noqa: E402
+from sph.harness.keys import digest  # noqa: E402
+from sph.harness.record import RECORD_COLUMNS, save_record  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py")]
@@ -152,7 +154,7 @@ def inputs_key(exp: S.Experiment, results, path: Path, trained: dict) -> str:
     gen = json.loads((path / "generate.json").read_text())
     return digest({"data": [gen.get("fingerprint"), gen.get("config"), (path / "metadata.json").read_text()],
                    "cost": to_mapping(exp.cost), "eval": to_mapping(exp.eval), "model": to_mapping(exp.model),
-                   "dtype": exp.train.dtype, "seed": exp.train.seed, "code": runs.code_fingerprint(CODE),
+                   "dtype": exp.train.dtype, "seed": exp.train.seed, "code": keys.code_fingerprint(CODE),
                    "trained": {k: [S.metrics_path(results, k).read_text(),
                                    (S.ckpt_dir(results, k) / "train.json").read_text()]
                                for k, (met, _) in trained.items() if met is not None}})
@@ -272,7 +274,7 @@ def interleaved_times(steppers: dict, repeats: int) -> dict:
 
 
 def record(exp: S.Experiment, p: Point, row: dict) -> dict:
-    """The run record of one point (sph.runs.RECORD_COLUMNS, then err_<name>, then extras): a "run"
+    """The run record of one point (sph.harness.record.RECORD_COLUMNS, then err_<name>, then extras): a "run"
     is one 20-step test rollout, so wall_s = n_rollout_steps x the time per coarse step."""
     d, n = exp.data, exp.eval.n_rollout_steps
     s = row["ms_per_coarse_step"] / 1e3
@@ -282,7 +284,7 @@ def record(exp: S.Experiment, p: Point, row: dict) -> dict:
              "h_factor": 1.0 if p.kind != "gns" else float("nan"), "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
              "dt": frame_dt, "t_end": n * frame_dt, "wall_s": n * s, "compile_s": row["compile_s"],
              "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb()}
-    rec = {c: fixed[c] for c in runs.RECORD_COLUMNS}
+    rec = {c: fixed[c] for c in RECORD_COLUMNS}
     rec.update({f"err_{k}": row[k] for k in ("mse20", "mse5", "e_kin")})
     rec.update({k: row[k] for k in ("kind", "M", "substeps", "substep_dt", "substep_over_cfl", "finite",
                                     "n_rollouts", "source")})
@@ -414,7 +416,7 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     for r in rows:
         folder = cdir / r["name"]
         folder.mkdir(parents=True, exist_ok=True)
-        runs.save_record(folder, record(exp, by_name[r["name"]], r))
+        save_record(folder, record(exp, by_name[r["name"]], r))
     write_csv(rows, out / "cost.csv")
     plot(rows, out / "cost.png", f"RPF 2D, {d.n_particles} particles ({profile or Path(results).name}): "
                                   f"coarse step = {d.write_every} dt")
@@ -434,6 +436,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

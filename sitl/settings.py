@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 from sph.relax import Relaxation
 
 HERE = Path(__file__).resolve().parent
@@ -289,7 +290,7 @@ def data_config_digest(exp: Experiment) -> str:
 def data_fingerprint(exp: Experiment) -> str:
     """Configuration + generator + core solver code: a dataset is regenerated when this changes."""
     return digest({"data": to_mapping(exp.data),
-                   "code": source_hash(ROOT, [HERE / "generate.py", HERE / "settings.py"])})
+                   "code": code_fingerprint([HERE / "generate.py", HERE / "settings.py"])})
 
 
 def train_fingerprint(exp: Experiment, model: str, metadata_text: str) -> str:

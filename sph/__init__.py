@@ -1,13 +1,13 @@
 """sph: a thin, differentiable weakly compressible SPH core in JAX (reproduction of JAX-SPH).
 
 `import sph` leaves JAX's x64 flag alone; a solver built with `numerics.dtype: float64` switches it
-on (`sph.precision.enable_x64`), float32 runs never need it.
+on (`sph.precision.enable_x64`), float32 runs never need it. Nor does it touch XLA_FLAGS: the entry
+points set XLA's CPU defaults (`sph.harness.xla_cpu.set_cpu_defaults()`, one call to opt in).
+
+The physics core is the modules of this folder and `sph.cases`; `sph.harness` (configs from YAML,
+cached runs, files, the command line) builds on it and is never imported by it.
 """
-from . import xla_cpu
-
-xla_cpu.set_cpu_defaults()
-
-from . import precision  # noqa: F401, E402
+from . import precision  # noqa: F401
 from .config import Effects, Material, Numerics
 from .errors import ConfigError
 from .domain import Domain

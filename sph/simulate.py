@@ -3,8 +3,8 @@
 `run(solver, state, nbrs, t_end, write_every, writer)` advances `write_every` steps per jitted chunk
 (`sph.rollout.make_chunk` + `advance`, so neighbour-list overflow re-allocates and never loses a
 step). After every chunk it records a frame (t, u_max, E_kin, max density error; positions and
-kept fields go to the optional `sph.io.TrajectoryWriter`) and overwrites the writer's checkpoint, so
-an interrupted run continues with `resume(solver, writer)` + `run(..., step0=step)`.
+kept fields go to the optional writer, `sph.harness.io.TrajectoryWriter`) and overwrites its
+checkpoint, so an interrupted run continues with `resume(solver, writer)` + `run(..., step0=step)`.
 
 Timing: the chunk is compiled ahead of every call with new shapes (`jit(...).lower(...).compile()`,
 which fills the same cache the calls use, without taking a step): before the loop and again after a
@@ -41,9 +41,11 @@ from tqdm.auto import tqdm
 
 from . import diagnostics, reorder
 from .diagnostics import SimulationError
-from .io import SERIES
 from .rollout import advance, make_chunk
 from .state import ParticleState
+
+SERIES = ("time", "step", "u_max", "e_kin", "density_error")
+"""The per-frame scalars a run records (simulated time, step, and the frame diagnostics)."""
 
 
 @dataclass(frozen=True, eq=False)

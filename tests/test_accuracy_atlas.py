@@ -8,10 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import sph
 from experiments.accuracy import atlas as A
 from experiments.accuracy import run as R
 from experiments.accuracy import settings as S
-from sph import runs as sph_runs
+from sph.harness import record
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +20,7 @@ def built(tmp_path_factory):
     results = tmp_path_factory.mktemp("results")
     atlas = S.load("smoke")
     n = R.run_sweep(atlas, results, progress=False)
-    # a cavity record as its own experiment writes it (sph.runs.record), gathered without re-running
+    # a cavity record as its own experiment writes it (sph.harness.record), gathered without re-running
     cav = results / "ldc2d" / "tvf_dx0.02"
     cav.mkdir(parents=True)
     (cav / "record.json").write_text(json.dumps(
@@ -37,7 +38,7 @@ def test_sweep_writes_the_four_outputs_and_a_record_per_run(built):
         assert (out / name).stat().st_size > 0, name
     tgv = table[table["experiment"] == "tgv2d"]
     assert len(tgv) == n
-    assert set(sph_runs.RECORD_COLUMNS) <= set(table.columns)
+    assert set(record.RECORD_COLUMNS) <= set(table.columns)
     assert np.all(np.isfinite(tgv["err_u_max_mean"])) and np.all(tgv["wall_s"] > 0)
     assert set(tgv["dtype"]) == set(sw.dtypes) and set(tgv["dx"]) == set(sw.dx)
     assert (table["experiment"] == "ldc2d").sum() == 1  # the gathered record
@@ -120,5 +121,5 @@ def test_kernel_entries_with_their_own_smoothing_length():
     assert S.tgv_results("r", "wendland_c2@1.5", "float32").name == "wendland_c2_h1.5_float32"
     assert S.tgv_results("r", "quintic", "float32").name == "quintic_float32"
     for bad in ("wendland_c2@", "wendland_c2@-1", "wendland_c2@x", "cubic@1.5"):
-        with pytest.raises(sph_runs.ConfigError, match=r"tgv\.kernels\[1\]"):
+        with pytest.raises(sph.ConfigError, match=r"tgv\.kernels\[1\]"):
             S.load("smoke", overrides={"tgv": {"kernels": ["quintic", bad]}})

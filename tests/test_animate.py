@@ -1,5 +1,5 @@
-"""sph.animate: a GIF of a tiny trajectory (a rotating patch of fluid in a walled box, written with
-sph.io's writer, no solver) has the requested frames and size, its frames differ, and a field the
+"""sph.harness.animate: a GIF of a tiny trajectory (a rotating patch of fluid in a walled box, written with
+sph.harness.io's writer, no solver) has the requested frames and size, its frames differ, and a field the
 run did not store is refused with a message naming it and the available ones."""
 import json
 import subprocess
@@ -10,15 +10,15 @@ import pytest
 from PIL import Image
 
 import sph
-from sph import animate, io
-from sph.configtools import ConfigError
+from sph.harness import animate, io
+from sph.harness.configtools import ConfigError
 
 N_FRAMES = 8
 DX = 0.05
 
 
 class _Frame:
-    """The attributes TrajectoryWriter.append reads (sph.io.FIELDS), without building a solver."""
+    """The attributes TrajectoryWriter.append reads (sph.harness.io.FIELDS), without building a solver."""
 
     def __init__(self, r, v, p):
         self.r, self.v, self.p = r, v, p
@@ -84,11 +84,11 @@ def test_unknown_or_unstored_field_names_the_available_ones(traj, tmp_path):
 
 def test_command_line(traj, tmp_path):
     out = tmp_path / "p.gif"
-    ok = subprocess.run([sys.executable, "-m", "sph.animate", str(traj), str(out), "--field", "pressure",
+    ok = subprocess.run([sys.executable, "-m", "sph.harness.animate", str(traj), str(out), "--field", "pressure",
                          "--frames", "3"], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
     assert _frames(out)[0] == 3
-    bad = subprocess.run([sys.executable, "-m", "sph.animate", str(traj), str(out), "--field", "temperature"],
+    bad = subprocess.run([sys.executable, "-m", "sph.harness.animate", str(traj), str(out), "--field", "temperature"],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "'temperature'" in bad.stderr
 

@@ -6,7 +6,7 @@ import pytest
 
 import sph
 from sph.cases import tgv
-from sph.configtools import from_mapping
+from sph.harness.configtools import from_mapping
 
 
 @dataclass(frozen=True)

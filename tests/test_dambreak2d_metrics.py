@@ -4,7 +4,7 @@ No simulation: runs in a second or two."""
 import numpy as np
 import pytest
 
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from sph.kernels import make_kernel
 from experiments.dambreak2d import evaluate as E
 from experiments.dambreak2d import settings as S

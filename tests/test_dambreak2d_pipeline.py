@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 import sph
-from sph import io
+from sph.harness import io
 from experiments.dambreak2d import evaluate as E
 from experiments.dambreak2d import plot_fig8 as P
 from experiments.dambreak2d import run as R

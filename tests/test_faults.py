@@ -23,10 +23,11 @@ import pytest
 import yaml
 
 import sph
-from sph import io, rollout, simulate
+from sph import rollout, simulate
+from sph.harness import io
 from sph.cases import ldc, tgv
-from sph.cli import EXIT_CONFIG, EXIT_SIMULATION, main_guard
-from sph.configtools import ConfigError, from_mapping, load_profile
+from sph.harness.cli import EXIT_CONFIG, EXIT_SIMULATION, main_guard
+from sph.harness.configtools import ConfigError, from_mapping, load_profile
 from sph.diagnostics import BlowUp, NeighborOverflow, ParticleEscaped, SimulationError
 from sph.domain import Domain
 from sph.lattice import cartesian

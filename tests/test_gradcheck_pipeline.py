@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from gradcheck import plot as P
 from gradcheck import run as R
 from gradcheck import settings as S

@@ -245,7 +245,8 @@ def test_temperature_frames_are_stored_and_a_run_resumes_from_them(tmp_path):
     heat run that stops half-way resumes to the same final temperature as an uninterrupted run
     (same steps, same arithmetic: equal to round-off), whose amplitude follows exp(-alpha k^2 t)
     within 1 % (the operator's error at dx = 0.05 is 1.07 %, see the module doc; t is short)."""
-    from sph import io, simulate
+    from sph import simulate
+    from sph.harness import io
 
     dx, t_end, every = 0.05, 0.1, 10
     r = lattice(dx)
@@ -274,7 +275,7 @@ def test_temperature_frames_are_stored_and_a_run_resumes_from_them(tmp_path):
 
 
 def test_keeping_temperature_without_heat_names_the_field(tmp_path):
-    from sph import io
+    from sph.harness import io
 
     r = lattice(0.1)
     solver = sph.build_solver(Scene(name="no_heat", dx=0.1, domain=UNIT_SQUARE, material=sph.Material(),

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from inverse import plot as P
 from inverse import run as R
 from inverse import settings as S

@@ -14,7 +14,8 @@ import pandas as pd
 import pytest
 
 import sph
-from sph.configtools import ConfigError
+from sph.harness import io
+from sph.harness.configtools import ConfigError
 from sph.kernels import make_kernel
 from experiments.ldc2d import analysis as A
 from experiments.ldc2d import plot as P
@@ -84,7 +85,7 @@ def test_profiles_are_finite_and_lid_driven(exp, finished, method):
 def test_trajectory_and_metadata(exp, finished):
     results, _ = finished
     folder = S.run_dir(results, "riemann", DX)
-    tr = sph.io.read_trajectory(folder / "traj.h5")
+    tr = io.read_trajectory(folder / "traj.h5")
     meta = json.loads((folder / "metadata.json").read_text())
     n = 26 * 26
     assert tr["position"].shape == (exp.frames + 1, n, 2)

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import sph
-from sph import io, reorder, simulate
+from sph import reorder, simulate
+from sph.harness import io
 from sph.cases import ldc, tgv
 from sph.diagnostics import BlowUp
 from sph.domain import Domain

@@ -1,6 +1,7 @@
-"""sph.runs: cache keys that are exactly right, the cached run (skip / resume / repair), the run
-record, metrics tables of exactly the current runs, make stamps, and a copied experiment folder
-that works as a template."""
+"""The harness (sph.harness): cache keys that are exactly right (keys), the cached run (skip / resume /
+repair: runs), the run record (record), metrics tables of exactly the current runs (tables), make
+stamps, a copied experiment folder that works as a template, and arrows only from harness to core."""
+import ast
 import shutil
 import subprocess
 import sys
@@ -12,7 +13,7 @@ import pytest
 import yaml
 
 import sph
-from sph import io, runs, stamp
+from sph.harness import cli, io, keys, record, runs, stamp, tables
 from sph.cases import tgv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,10 +23,10 @@ RUN_PY = ROOT / "experiments" / "ldc2d" / "run.py"
 # -- cache keys -------------------------------------------------------------------------------------
 @pytest.fixture
 def sph_copy(tmp_path, monkeypatch):
-    """A copy of sph/ that runs.code_fingerprint reads instead of the real one."""
+    """A copy of sph/ that keys.code_fingerprint reads instead of the real one."""
     copy = tmp_path / "sph"
     shutil.copytree(ROOT / "sph", copy, ignore=shutil.ignore_patterns("__pycache__"))
-    monkeypatch.setattr(runs, "SPH_ROOT", copy)
+    monkeypatch.setattr(keys, "SPH_ROOT", copy)
     return copy
 
 
@@ -36,27 +37,72 @@ def _edit_docstring(path: Path):
 
 
 def test_docstring_and_io_edits_keep_the_cache_key(sph_copy):
-    before = runs.code_fingerprint([RUN_PY])
-    _edit_docstring(sph_copy / "io.py")
-    (sph_copy / "io.py").write_text((sph_copy / "io.py").read_text() + "\nNEW_FORMAT_CONSTANT = 3\n")
+    before = keys.code_fingerprint([RUN_PY])
+    io_py = sph_copy / "harness" / "io.py"
+    _edit_docstring(io_py)
+    io_py.write_text(io_py.read_text() + "\nNEW_FORMAT_CONSTANT = 3\n")
     _edit_docstring(sph_copy / "momentum.py")
-    runs._code_fingerprint.cache_clear()  # a new process would hash the edited files afresh
-    assert runs.code_fingerprint([RUN_PY]) == before
+    keys._code_fingerprint.cache_clear()  # a new process would hash the edited files afresh
+    assert keys.code_fingerprint([RUN_PY]) == before
 
 
 def test_physics_edit_changes_the_cache_key(sph_copy):
-    before = runs.code_fingerprint([RUN_PY])
+    before = keys.code_fingerprint([RUN_PY])
     s = (sph_copy / "momentum.py").read_text()
     (sph_copy / "momentum.py").write_text(s + "\n\ndef _extra_term(x):\n    return 2 * x\n")
-    assert runs.code_fingerprint([RUN_PY]) == before  # this process still runs the code it imported
-    runs._code_fingerprint.cache_clear()  # a new process hashes the edited files afresh
-    assert runs.code_fingerprint([RUN_PY]) != before
+    assert keys.code_fingerprint([RUN_PY]) == before  # this process still runs the code it imported
+    keys._code_fingerprint.cache_clear()  # a new process hashes the edited files afresh
+    assert keys.code_fingerprint([RUN_PY]) != before
 
 
 def test_closure_holds_the_physics_not_the_formats():
-    mods = runs.sph_closure(runs.SOLVER_MODULES + ("sph.cases.ldc",))
+    mods = keys.sph_closure(keys.SOLVER_MODULES + ("sph.cases.ldc",))
     assert {"sph.momentum", "sph.riemann", "sph.walls", "sph.solver", "sph.cases.ldc"} <= set(mods)
-    assert not set(mods) & runs.NUMBER_NEUTRAL
+    assert not set(mods) & keys.NUMBER_NEUTRAL
+
+
+def _module(root: Path, name: str, text: str):
+    path = root.joinpath(*name.split(".")[1:])
+    path = path / "__init__.py" if name.endswith("!pkg") else path.with_suffix(".py")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def test_closure_follows_subpackages(tmp_path, monkeypatch):
+    root = tmp_path / "sph"
+    for name, text in {"sph.solver": "from .terms import pressure\nfrom . import terms\nfrom .terms.visc import f\n",
+                       "sph.simulate": "from .harness import io\n", "sph.terms.pressure": "from ..eos import T\n",
+                       "sph.terms.visc": "from ..kernels import k\n", "sph.eos": "", "sph.kernels": "",
+                       "sph.harness.io": "from ..state import S\n", "sph.state": "", "sph.harness.study":
+                       "from sph.cases import tgv\nfrom . import runs\n", "sph.harness.runs": "", "sph.cases.tgv": ""}.items():
+        _module(root, name, text)
+    for pkg in ("terms", "harness", "cases"):
+        (root / pkg / "__init__.py").write_text("")
+    (root / "__init__.py").write_text("")
+    monkeypatch.setattr(keys, "SPH_ROOT", root)
+    assert keys.sph_closure(keys.SOLVER_MODULES) == ["sph.eos", "sph.kernels", "sph.simulate", "sph.solver",
+                                                     "sph.terms", "sph.terms.pressure", "sph.terms.visc"]
+    # a study module of the harness that sets up scenes counts; the run bookkeeping it imports does not
+    assert keys.sph_closure(["sph.harness.study"]) == ["sph.cases", "sph.cases.tgv", "sph.harness.study"]
+
+
+def test_number_neutral_names_harness_modules():
+    harness = {f"sph.harness.{p.stem}" for p in (ROOT / "sph" / "harness").glob("*.py") if p.stem != "__init__"}
+    assert keys.NUMBER_NEUTRAL <= harness | {"sph.harness"}
+    assert {"sph.harness.io", "sph.harness.runs", "sph.harness.cli", "sph.harness.animate"} <= keys.NUMBER_NEUTRAL
+
+
+def test_core_never_imports_the_harness():
+    for path in (ROOT / "sph").rglob("*.py"):
+        if "harness" in path.relative_to(ROOT / "sph").parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                mod = "." * node.level + (node.module or "")
+                names = [a.name for a in node.names]
+                assert "harness" not in mod.split(".") and "harness" not in names, f"{path}: imports {mod}"
+            elif isinstance(node, ast.Import):
+                assert not any(a.name.startswith("sph.harness") for a in node.names), path
 
 
 def test_import_sph_leaves_x64_off():
@@ -79,7 +125,7 @@ def test_run_skip_repair_and_record(tmp_path, capsys):
     sp = _spec(tmp_path / "run")
     out = runs.run_cached(sp, _solver, progress=False)
     assert out.status == "run" and runs.stored_state(sp) == "current"
-    n_frames = runs.read_metadata(sp.meta_path)["sequence_length"]
+    n_frames = io.read_metadata(sp.meta_path)["sequence_length"]
     assert (sp.folder / "traj.xdmf").read_text().count("<Grid Name=\"frame") == n_frames == 6  # 9 steps, every 2
     e_kin = io.read_trajectory(sp.traj)["e_kin"]
     assert runs.run_cached(sp, _solver, progress=False).status == "skipped"
@@ -98,8 +144,8 @@ def test_run_skip_repair_and_record(tmp_path, capsys):
     runs.run_cached(sp2, _solver, progress=False)
     assert (sp.folder / "traj.h5.stale-1").exists()
 
-    rec = runs.record(sp.folder, experiment="tgv2d", target="fig5", method="sph", errors={"e_kin": 0.1})
-    assert list(rec)[:len(runs.RECORD_COLUMNS)] == list(runs.RECORD_COLUMNS)
+    rec = record.record(sp.folder, experiment="tgv2d", target="fig5", method="sph", errors={"e_kin": 0.1})
+    assert list(rec)[:len(record.RECORD_COLUMNS)] == list(record.RECORD_COLUMNS)
     assert rec["n_particles"] == 100 and rec["dim"] == 2 and rec["err_e_kin"] == 0.1
     assert rec["n_steps"] == round(0.02 / _solver().dt) and rec["wall_s"] > 0 and rec["peak_rss_mb"] > 0
 
@@ -108,14 +154,14 @@ def test_damaged_metrics_table_names_its_file(tmp_path):
     bad = tmp_path / "metrics.csv"
     bad.write_bytes(b"")
     with pytest.raises(RuntimeError, match=r"metrics\.csv: damaged metrics table"):
-        runs.read_table(bad)
+        tables.read_table(bad)
 
 
 def test_select_refuses_values_outside_the_config():
-    assert runs.select("--dx", [0.05], [0.05, 0.04]) == [0.05]
-    assert runs.select("--dx", None, [0.05]) is None
+    assert cli.select("--dx", [0.05], [0.05, 0.04]) == [0.05]
+    assert cli.select("--dx", None, [0.05]) is None
     with pytest.raises(sph.ConfigError, match=r"--dx 0\.03: not one of this profile's values"):
-        runs.select("--dx", [0.03], [0.05, 0.04])
+        cli.select("--dx", [0.03], [0.05, 0.04])
 
 
 def test_stamp_changes_only_with_the_outputs(tmp_path):

@@ -6,7 +6,7 @@ import pytest
 
 import sph
 from sph.cases import ldc, tank
-from sph.configtools import ConfigError, from_mapping
+from sph.harness.configtools import ConfigError, from_mapping
 from sph.heat import TemperatureZone
 
 DX = 0.1

@@ -29,8 +29,8 @@ import pytest
 from experiments.accuracy import atlas as A
 from experiments.accuracy import settings as AS
 from sitl import settings as S
-from sph import runs as sph_runs
-from sph.configtools import ConfigError
+from sph.harness import record
+from sph.harness.configtools import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVER_M = (1, 2, 5, 10)        # the smoke profile's cost.coarsening; write_every W = 10
@@ -118,7 +118,7 @@ def test_records_are_gathered_by_the_atlas(cost):
     assert "sitl" in atlas.gather
     runs = A.gather(atlas, results)
     sitl = runs[runs["experiment"] == "sitl"]
-    assert len(sitl) == len(rows) and set(sph_runs.RECORD_COLUMNS) <= set(runs.columns)
+    assert len(sitl) == len(rows) and set(record.RECORD_COLUMNS) <= set(runs.columns)
     table = A.problem_table(runs, atlas, "Solver-in-the-Loop (RPF 2D)")
     assert len(table) == len(rows)
     for _, rec in sitl.iterrows():

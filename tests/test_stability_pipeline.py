@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sph import io
-from sph.configtools import ConfigError
+from sph.harness import io
+from sph.harness.configtools import ConfigError
 from experiments.stability import cases as C
 from experiments.stability import run as R
 from experiments.stability import settings as S

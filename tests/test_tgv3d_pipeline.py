@@ -29,7 +29,7 @@ import pytest
 import sph
 from sph import diagnostics, momentum
 from sph.cases import tgv3d
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from experiments.tgv3d import analysis as A
 from experiments.tgv3d import run as R
 from experiments.tgv3d import settings as S

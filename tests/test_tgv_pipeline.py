@@ -15,9 +15,10 @@ import pandas as pd
 import pytest
 
 import sph
-from sph import io, runs, simulate
+from sph import simulate
+from sph.harness import io, tables
 from sph.cases import tgv
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from experiments.tgv2d import run as R
 from experiments.tgv2d import settings as S
 
@@ -110,7 +111,7 @@ def test_metrics_table_lists_exactly_the_current_runs(exp, finished, tmp_path):
     other = S.load("smoke", overrides={**OVERRIDE, "methods": [{"name": "sph", "effects": {}}], "fig4_method": "sph"})
     assert R.write_metrics(other, work).empty and not path.exists()
     with pytest.raises(FileNotFoundError, match="no metrics table"):
-        runs.read_table(path)
+        tables.read_table(path)
     assert len(R.write_metrics(exp, work)) == 1 and len(pd.read_csv(path)) == 1
 
 class _Stop(Exception):

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from sph.cases import channel
-from sph.configtools import ConfigError
+from sph.harness.configtools import ConfigError
 from experiments.thermal import plot_fig10, plot_heat_validation
 from experiments.thermal import run as R
 from experiments.thermal import settings as S

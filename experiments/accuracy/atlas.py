@@ -1,11 +1,11 @@
 """The accuracy-cost atlas: every run record of a results folder side by side.
 
-Reads (never re-runs) the run records (record.json, sph.runs) of the TGV sweep (run.py) and of the
+Reads (never re-runs) the run records (record.json, sph.harness.runs) of the TGV sweep (run.py) and of the
 experiments in `gather` (cavity: Figs. 6-7, dam break: Fig. 8, heat-operator validation), plus the
 gradient check's metrics (gradcheck/: AD vs FD error against AD time). Writes, into
 results/<profile>/accuracy/:
 
-  runs.csv          every run record found (one schema: sph.runs.RECORD_COLUMNS + err_<name>)
+  runs.csv          every run record found (one schema: sph.harness.record.RECORD_COLUMNS + err_<name>)
   accuracy.png/pdf  one panel per problem: error against wall time (log-log), a marker per method,
                     the Pareto front (the runs no other run beats in both error and time) drawn
   convergence.png   per problem: error against dx with the least-squares order per method, and wall
@@ -267,6 +267,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -6,7 +6,7 @@ ACCURACY     := experiments/accuracy
 
 .PHONY: accuracy
 $(RESULTS)/accuracy/tgv.done: FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(RESULTS)/accuracy/tgv -- $(PY) $(ACCURACY)/run.py --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m sph.harness.stamp $@ $(RESULTS)/accuracy/tgv -- $(PY) $(ACCURACY)/run.py --profile $(PROFILE) --results $(RESULTS)
 
 accuracy: $(RESULTS)/accuracy/tgv.done | $(VENV)
 	$(PY) $(ACCURACY)/atlas.py --profile $(PROFILE) --results $(RESULTS)

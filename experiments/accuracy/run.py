@@ -1,6 +1,6 @@
 """The TGV sweep of the accuracy-cost atlas: every method x dx x dtype x kernel of the profile, each
 (kernel, dtype) as one experiments/tgv2d experiment run with tgv2d's own code (cached, resumable:
-sph.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
+sph.harness.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
 the other problems of the atlas (cavity, dam break, heat) are not run here: atlas.py reads the run
 records their own experiments wrote.
 
@@ -12,7 +12,7 @@ import time
 from experiments.tgv2d import run as tgv_run
 from experiments.tgv2d import settings as tgv_settings
 
-from sph.configtools import ConfigError, to_mapping
+from sph.harness.configtools import ConfigError, to_mapping
 
 try:
     from . import settings as S
@@ -63,6 +63,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

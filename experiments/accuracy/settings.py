@@ -5,7 +5,7 @@ from typing import Optional
 
 import numpy as np
 
-from sph.configtools import load_profile, require
+from sph.harness.configtools import load_profile, require
 from sph.config import Numerics
 from sph.kernels import KERNELS
 from sph.precision import DTYPES

@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 import sph
-from sph import io, runs
+from sph.harness import io, record, tables
 from sph.kernels import make_kernel
 try:
     from . import settings as S
@@ -214,14 +214,14 @@ def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
     """Metrics of every column of the profile -> results/<profile>/dambreak2d/metrics.csv."""
     rows = [evaluate_run(exp, c, results) for c in exp.columns]
     path = S.metrics_path(results)
-    table = runs.write_table(path, rows)
+    table = tables.write_table(path, rows)
     for c, r in zip(exp.columns, rows):
         errors = {"density_max": r["density_error_max"]}
         for k in ("p_rms_smooth", "front_relerr_max", "front_relerr_mean", "height_abserr_max"):
             if k in r:
                 errors[k] = r[k]
         folder = S.run_dir(results, c.name, exp.dx)
-        runs.save_record(folder, runs.record(folder, experiment=S.NAME, target="fig8", method=c.name, errors=errors))
+        record.save_record(folder, record.record(folder, experiment=S.NAME, target="fig8", method=c.name, errors=errors))
     for r in rows:
         msg = (f"{r['column']} dx{r['dx']:g}: density error max {r['density_error_max']:.4f}, "
                f"left tank {r['n_left_tank']}, wall {r['wall_s']:.1f} s")
@@ -248,6 +248,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -5,7 +5,7 @@ back-wall height against Martin & Moyce (1952).
 
 Reads results/<profile>/dambreak2d/*/traj.h5, series.csv and metrics.csv (evaluate.py); writes
 results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy); with --gif PATH
-only an animation of the Fig. 8 column's pressure in the figure's colour range (sph.animate).
+only an animation of the Fig. 8 column's pressure in the figure's colour range (sph.harness.animate).
 
     python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--gif fig8.gif]
 """
@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import sph  # noqa: E402
-from sph import animate, io  # noqa: E402
+from sph.harness import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import evaluate as E
     from . import settings as S
@@ -159,6 +159,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -3,11 +3,11 @@
 For each column (config `columns`: the 2:1 column of Colagrossi & Landrini 2003 for the pressure
 history and Fig. 8, the square column of Martin & Moyce 1952 for the surge front) this writes
 
-  results/<profile>/dambreak2d/<column>_dx<dx>/traj.h5        LagrangeBench layout (sph.io), + checkpoint
+  results/<profile>/dambreak2d/<column>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
   results/<profile>/dambreak2d/<column>_dx<dx>/metadata.json
 
 with a frame every `frame_dt` (rounded to whole steps). The metrics are computed from these files by
-evaluate.py. Caching is sph.runs.run_cached's: a run whose traj.h5 is complete and was made from the
+evaluate.py. Caching is sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the
 same inputs (the simulation settings and the code that can change its numbers) is skipped; one that
 stopped part-way resumes from its checkpoint; a damaged or stale one is set aside and run again.
 
@@ -19,9 +19,9 @@ import time
 import numpy as np
 
 import sph
-from sph import runs
+from sph.harness import cli, runs
 from sph.cases import tank
-from sph.configtools import to_mapping
+from sph.harness.configtools import to_mapping
 try:
     from . import settings as S
 except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
@@ -89,11 +89,11 @@ def main(argv=None):
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    columns = runs.select("--only", args.only, [c.name for c in exp.columns])
+    columns = cli.select("--only", args.only, [c.name for c in exp.columns])
     run_all(exp, args.results or f"results/{args.profile}", columns, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

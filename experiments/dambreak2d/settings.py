@@ -6,7 +6,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -170,7 +171,7 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
     """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])
+    return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])
 
 
 def run_fingerprint(exp: Experiment, column: Column) -> str:

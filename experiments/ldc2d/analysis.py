@@ -241,7 +241,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
     results = args.results or f"results/{args.profile}"
-    from sph import io
+    from sph.harness import io
     for dx in exp.dx:
         for m in exp.methods:
             st = io.trajectory_status(S.run_dir(results, m.name, dx) / "traj.h5")
@@ -254,6 +254,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -6,7 +6,7 @@ Fig. 6 uses the runs at figures.fig6's dx (paper: 0.02), Fig. 7 those at figures
 Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} (re-evaluating
 the runs first, so a changed `analysis` setting takes effect); writes results/<profile>/<fig>/
 <fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx); with --gif PATH only an animation
-of one method's run of that figure (--method, default tvf; sph.animate).
+of one method's run of that figure (--method, default tvf; sph.harness.animate).
 
     python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke] [--gif fig6.gif]
 """
@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph import animate, io  # noqa: E402
+from sph.harness import animate, io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
 try:  # noqa: E402
     from . import analysis
@@ -128,6 +128,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -9,13 +9,13 @@ them, which the one-sided Riemann wall reads as a wall receding from the fluid: 
 corner it sucks fluid particles into the wall (Riemann SPH at dx = 0.02 blows up at t = 0.79).
 Each run writes
 
-  results/<profile>/ldc2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.io), + checkpoint
+  results/<profile>/ldc2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
   results/<profile>/ldc2d/<method>_dx<dx>/metadata.json
   results/<profile>/ldc2d/<method>_dx<dx>/profiles.npz   centreline profiles (analysis.py)
-  results/<profile>/ldc2d/<method>_dx<dx>/record.json    the run record (sph.runs), for `make accuracy`
+  results/<profile>/ldc2d/<method>_dx<dx>/record.json    the run record (sph.harness.runs), for `make accuracy`
   results/<profile>/ldc2d/metrics.csv                    one row per run of the current config
 
-Caching is sph.runs.run_cached's: a run whose traj.h5 is complete and was made from the same inputs
+Caching is sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the same inputs
 (settings.run_fingerprint: the solver settings and only the code that can change the numbers, without
 docstrings) is skipped (only re-evaluated, itself cached on the analysis settings and code); one that
 stopped part-way resumes from its checkpoint; a damaged or stale one is set aside and run again.
@@ -32,9 +32,10 @@ import time
 import numpy as np
 
 import sph
-from sph import diagnostics, runs
+from sph import diagnostics
+from sph.harness import cli, keys, record, runs, tables
 from sph.cases import ldc
-from sph.configtools import to_mapping
+from sph.harness.configtools import to_mapping
 try:
     from . import analysis
     from . import settings as S
@@ -102,8 +103,8 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     """The metrics row of a finished run (analysis.evaluate, cached beside the run on the trajectory's
     fingerprint and the analysis settings and code)."""
     sp = spec(exp, exp.method(method), dx, results)
-    key = runs.digest({"run": sp.fingerprint, "analysis": to_mapping(exp.analysis), "ghia_re": exp.ghia_re,
-                       "code": runs.code_digest(analysis.__file__)})
+    key = keys.digest({"run": sp.fingerprint, "analysis": to_mapping(exp.analysis), "ghia_re": exp.ghia_re,
+                       "code": keys.code_digest(analysis.__file__)})
     return runs.cached_row(sp.folder, key, lambda: analysis.evaluate(exp, method, dx, results))
 
 
@@ -118,13 +119,13 @@ def write_metrics(exp: "S.Experiment", results) -> None:
             row = evaluate(exp, m.name, dx, results)
             rows.append(row)
             fig = next((f for f, d in exp.figures.items() if abs(d - dx) < 1e-12), "ldc2d")
-            runs.save_record(sp.folder, runs.record(
+            record.save_record(sp.folder, record.record(
                 sp.folder, experiment=S.NAME, target=fig, method=m.name,
                 errors={"ghia_u_rms": row["u_rms"], "ghia_v_rms": row["v_rms"],
                         "ghia_rms": float(np.hypot(row["u_rms"], row["v_rms"]) / np.sqrt(2))}))
     order = {m.name: i for i, m in enumerate(exp.methods)}
     rows.sort(key=lambda r: (-r["dx"], order[r["method"]]))
-    runs.write_table(S.metrics_path(results), rows)
+    tables.write_table(S.metrics_path(results), rows)
 
 
 def run_all(exp: "S.Experiment", results, methods=None, dxs=None, progress: bool = True, log_every: int = 0):
@@ -152,8 +153,8 @@ def main(argv=None):
                     help="print a progress line every N frames (default: 10 with --no-progress, else off)")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    methods = runs.select("--only", args.only, [m.name for m in exp.methods])
-    dxs = runs.select("--dx", args.dx, list(exp.dx))
+    methods = cli.select("--only", args.only, [m.name for m in exp.methods])
+    dxs = cli.select("--dx", args.dx, list(exp.dx))
     if args.fig:
         if args.fig not in exp.figures:
             ap.error(f"--fig: profile {args.profile!r} has no {args.fig} (figures: {list(exp.figures)})")
@@ -163,6 +164,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

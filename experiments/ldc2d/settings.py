@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, from_mapping, load_profile, merge, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import from_mapping, load_profile, merge, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -176,8 +177,8 @@ def profiles_path(results, method: str, dx: float) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of the code that makes a trajectory: settings.py, run.py and the sph modules they and the
-    solver import (sph.runs.code_fingerprint; docstrings and comments do not count)."""
-    return source_hash(ROOT, [HERE / "settings.py", HERE / "run.py"])
+    solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
+    return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
 
 
 def settings_fingerprint(exp: Experiment, method: Method, dx: float) -> str:

@@ -28,7 +28,8 @@ import pandas as pd
 from scipy.spatial import cKDTree
 
 import sph
-from sph import io, simulate
+from sph import simulate
+from sph.harness import io
 from sph.cases import ldc, tank, tgv
 from sph.domain import Domain
 from sph.lattice import cartesian, jitter

@@ -2,7 +2,7 @@
 (method `fig4_method`, default TVF, at the finest dx of the profile).
 
 Reads results/<profile>/tgv2d/<method>_dx<dx>/traj.h5; writes results/<profile>/fig4/fig4.{png,pdf}, or
-with --gif PATH only an animation of the same run (sph.animate).
+with --gif PATH only an animation of the same run (sph.harness.animate).
 
     python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke] [--gif fig4.gif]
 """
@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph import animate, io  # noqa: E402
+from sph.harness import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
 except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
@@ -70,6 +70,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

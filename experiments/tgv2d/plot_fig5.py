@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph import io, runs  # noqa: E402
+from sph.harness import io, tables  # noqa: E402
 from sph.cases import tgv  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -55,7 +55,7 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
     for ext in ("png", "pdf"):
         fig.savefig(out / f"fig5.{ext}", dpi=150)
     plt.close(fig)
-    table = runs.read_table(S.metrics_path(results))  # an error naming the file when it is damaged
+    table = tables.read_table(S.metrics_path(results))  # an error naming the file when it is damaged
     if len(table) != len(exp.methods) * len(exp.dx):
         raise RuntimeError(f"{S.metrics_path(results)}: {len(table)} rows for {len(exp.methods) * len(exp.dx)} runs "
                            "of the config; re-run experiments/tgv2d/run.py (it rebuilds the table)")
@@ -74,6 +74,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

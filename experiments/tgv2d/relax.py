@@ -15,7 +15,7 @@ import numpy as np
 
 import sph
 from sph import relax as core_relax
-from sph import runs
+from sph.harness import runs
 from sph.cases import tgv
 from sph.lattice import cartesian, jitter
 
@@ -55,6 +55,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -2,9 +2,9 @@
 # Included by the top-level Makefile (PROFILE, PY, RESULTS, VENV, FORCE). Written for any folder
 # name: a copy of this folder, experiments/my_study, is `make my_study` (runs + both figures into
 # results/<profile>/my_study/), with no edit here. The run step always calls run.py, whose cache
-# (sph.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
+# (sph.harness.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
 # output did, so the figures re-plot only then, or when their plot script changes. fig4.gif animates
-# the Fig. 4 run (fig4_method at the finest dx, sph.animate); editing sph/animate.py re-renders only it.
+# the Fig. 4 run (fig4_method at the finest dx, sph.harness.animate); editing sph/harness/animate.py re-renders only it.
 _dir := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 _name := $(notdir $(_dir))
 _runs := $(RESULTS)/$(_name)/runs.done
@@ -12,14 +12,14 @@ _figs := $(if $(filter tgv2d,$(_name)),$(RESULTS),$(RESULTS)/$(_name))
 
 $(_runs): DIR := $(_dir)
 $(_runs): FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
 
 $(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf: DIR := $(_dir)
 $(_figs)/fig4/fig4.png $(_figs)/fig4/fig4.pdf &: $(_runs) $(_dir)/plot_fig4.py
 	$(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 $(_figs)/fig4/fig4.gif: DIR := $(_dir)
-$(_figs)/fig4/fig4.gif: $(_runs) $(_dir)/plot_fig4.py sph/animate.py
+$(_figs)/fig4/fig4.gif: $(_runs) $(_dir)/plot_fig4.py sph/harness/animate.py
 	$(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --gif $@
 
 $(_figs)/fig5/fig5.png $(_figs)/fig5/fig5.pdf $(_figs)/fig5/metrics.csv: DIR := $(_dir)

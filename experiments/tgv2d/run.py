@@ -3,12 +3,12 @@
 For each spacing the relaxed positions (relax.py, cached) get the analytical TGV velocity; each
 method then runs to t_end, writing
 
-  results/<profile>/tgv2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.io), + checkpoint
+  results/<profile>/tgv2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
   results/<profile>/tgv2d/<method>_dx<dx>/metadata.json
-  results/<profile>/tgv2d/<method>_dx<dx>/record.json    the run record (sph.runs), for `make accuracy`
+  results/<profile>/tgv2d/<method>_dx<dx>/record.json    the run record (sph.harness.runs), for `make accuracy`
   results/<profile>/tgv2d/metrics.csv                    one row per run of the current config
 
-Caching and resuming are sph.runs.run_cached's: a run whose traj.h5 is complete and was made from the
+Caching and resuming are sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the
 same inputs (the profile settings, the relaxation and the code that can change the numbers) is
 skipped; one that stopped part-way resumes from its checkpoint; a damaged or stale one is set aside
 and run again. metrics.csv is rebuilt from the trajectories every time. The folder name (here tgv2d)
@@ -23,9 +23,9 @@ import numpy as np
 import pandas as pd
 
 import sph
-from sph import io, runs
+from sph.harness import cli, io, record, runs, tables
 from sph.cases import tgv
-from sph.configtools import to_mapping
+from sph.harness.configtools import to_mapping
 
 try:
     from . import relax, settings as S
@@ -64,7 +64,7 @@ def metrics_row(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     """Metrics of one finished run, from its traj.h5 and metadata.json."""
     folder = S.run_dir(results, method, dx)
     tr = io.read_trajectory(folder / "traj.h5")
-    meta = runs.read_metadata(folder / "metadata.json")
+    meta = io.read_metadata(folder / "metadata.json")
     attrs = tr["attrs"]
     t, u, e = tr["time"], tr["u_max"], tr["e_kin"]
     u_ex, e_ex = tgv.u_max_exact(t, exp.re), tgv.e_kin_exact(t, exp.re)
@@ -96,11 +96,11 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
             if runs.stored_state(sp) == "current":
                 row = metrics_row(exp, m.name, dx, results)
                 rows.append(row)
-                runs.save_record(sp.folder, runs.record(
+                record.save_record(sp.folder, record.record(
                     sp.folder, experiment=S.NAME, target="fig5", method=m.name,
                     errors={"u_max_mean": row["u_max_relerr_mean"], "e_kin_mean": row["e_kin_relerr_mean"],
                             **{f"u_max_t{te:g}": row[f"u_max_relerr_t{te:g}"] for te in exp.eval_times}}))
-    return runs.write_table(S.metrics_path(results), rows, sort=["dx", "method"], ascending=[False, True])
+    return tables.write_table(S.metrics_path(results), rows, sort=["dx", "method"], ascending=[False, True])
 
 
 def run_all(exp: "S.Experiment", results, methods=None, dxs=None, progress: bool = True) -> pd.DataFrame:
@@ -125,12 +125,12 @@ def main(argv=None):
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    methods = runs.select("--only", args.only, [m.name for m in exp.methods])
-    dxs = runs.select("--dx", args.dx, list(exp.dx))
+    methods = cli.select("--only", args.only, [m.name for m in exp.methods])
+    dxs = cli.select("--dx", args.dx, list(exp.dx))
     run_all(exp, args.results or f"results/{args.profile}", methods, dxs, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

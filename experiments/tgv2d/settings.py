@@ -5,7 +5,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
@@ -103,7 +104,7 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
     """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])  # + sph.relax via relax.py
+    return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])  # + sph.relax via relax.py
 
 
 def relax_fingerprint(exp: Experiment, dx: float) -> str:

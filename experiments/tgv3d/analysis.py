@@ -15,7 +15,7 @@ them (the paper profile takes hours).
 import h5py
 import numpy as np
 
-from sph import io, runs
+from sph.harness import io
 from sph.cases import tgv3d
 
 try:
@@ -96,7 +96,7 @@ def deviations(exp: "S.Experiment", ref: dict, s: dict) -> dict:
 
 
 def read_series(path, traj: str = "00000") -> dict:
-    """The per-frame scalar series of a trajectory (sph.io.SERIES: time, e_kin, ...), its attrs and
+    """The per-frame scalar series of a trajectory (sph.simulate.SERIES: time, e_kin, ...), its attrs and
     the particle count, without reading the positions (0.6 GB per run at 50^3)."""
     try:
         with h5py.File(path, "r") as f:
@@ -114,7 +114,7 @@ def metrics_row(exp: "S.Experiment", method: str, n: int, results, ref: dict = N
     """Metrics of one finished run, from its traj.h5 and metadata.json."""
     folder = S.run_dir(results, method, n)
     tr = read_series(folder / "traj.h5")
-    meta = runs.read_metadata(folder / "metadata.json")
+    meta = io.read_metadata(folder / "metadata.json")
     attrs = tr["attrs"]
     n_steps = int(attrs["n_steps"])
     row = {"case": exp.case, "method": method, "n_side": n, "dx": exp.dx(n), "dtype": exp.numerics.dtype,

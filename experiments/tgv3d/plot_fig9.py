@@ -15,7 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from sph import runs  # noqa: E402
+from sph.harness import tables  # noqa: E402
 try:  # noqa: E402
     from . import analysis, settings as S
 except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
@@ -57,7 +57,7 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
     for ext in ("png", "pdf"):
         fig.savefig(out / f"fig9.{ext}", dpi=150)
     plt.close(fig)
-    table = runs.read_table(S.metrics_path(results))  # an error naming the file when it is damaged
+    table = tables.read_table(S.metrics_path(results))  # an error naming the file when it is damaged
     if len(table) != len(exp.methods) * len(exp.n_side):
         raise RuntimeError(f"{S.metrics_path(results)}: {len(table)} rows for {len(exp.methods) * len(exp.n_side)} "
                            "runs of the config; re-run experiments/tgv3d/run.py (it rebuilds the table)")
@@ -76,6 +76,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -4,12 +4,12 @@ For each resolution n (n^3 particles, dx = 2 pi / n) the start (relaxed position
 cached, or the bare lattice, `start` in config.yaml) gets the analytical TGV velocity; each method
 then runs to t_end, writing
 
-  results/<profile>/tgv3d/<method>_n<n>/traj.h5        LagrangeBench layout (sph.io), + checkpoint
+  results/<profile>/tgv3d/<method>_n<n>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
   results/<profile>/tgv3d/<method>_n<n>/metadata.json
-  results/<profile>/tgv3d/<method>_n<n>/record.json    the run record (sph.runs), for `make accuracy`
+  results/<profile>/tgv3d/<method>_n<n>/record.json    the run record (sph.harness.runs), for `make accuracy`
   results/<profile>/tgv3d/metrics.csv                  one row per run of the current config
 
-Caching and resuming are sph.runs.run_cached's: a run whose traj.h5 is complete and was made from the
+Caching and resuming are sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the
 same inputs (the profile settings, the relaxation and the code that can change the numbers) is
 skipped; one that stopped part-way resumes from its checkpoint; a damaged or stale one is set aside
 and run again. metrics.csv is rebuilt from the trajectories every time (analysis.py, which is not part
@@ -23,9 +23,9 @@ import time
 import pandas as pd
 
 import sph
-from sph import runs
+from sph.harness import cli, record, runs, tables
 from sph.cases import tgv3d
-from sph.configtools import to_mapping
+from sph.harness.configtools import to_mapping
 
 try:
     from . import analysis, relax, settings as S
@@ -75,14 +75,14 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
             if runs.stored_state(sp) == "current":
                 row = analysis.metrics_row(exp, m.name, n, results, ref)
                 rows.append(row)
-                runs.save_record(sp.folder, runs.record(
+                record.save_record(sp.folder, record.record(
                     sp.folder, experiment=S.NAME, target="fig9", method=m.name,
                     errors={**{k: row[k] for k in ("e_kin_rms_dev", "e_kin_max_dev", "e_kin_rms_rel", "dissipation_rms_dev",
                                                    "dissipation_max_dev", "dissipation_rms_rel")},
                             "peak_t": abs(row["peak_t_err"]), "peak_height": abs(row["peak_dissipation_relerr"]),
                             "early_rate": abs(row["early_rate_relerr"])},
                     n_side=n, start=exp.start))
-    return runs.write_table(S.metrics_path(results), rows, sort=["n_side", "method"])
+    return tables.write_table(S.metrics_path(results), rows, sort=["n_side", "method"])
 
 
 def run_all(exp: "S.Experiment", results, methods=None, ns=None, progress: bool = True) -> pd.DataFrame:
@@ -107,12 +107,12 @@ def main(argv=None):
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    methods = runs.select("--only", args.only, [m.name for m in exp.methods])
-    ns = runs.select("--n", args.n, list(exp.n_side))
+    methods = cli.select("--only", args.only, [m.name for m in exp.methods])
+    ns = cli.select("--n", args.n, list(exp.n_side))
     run_all(exp, args.results or f"results/{args.profile}", methods, ns, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

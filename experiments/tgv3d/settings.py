@@ -8,7 +8,8 @@ import numpy as np
 
 import sph
 from sph.cases import tgv3d
-from sph.configtools import ConfigError, digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import ConfigError, load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
@@ -169,9 +170,9 @@ def metrics_path(results) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
-    """Hash of the solver's code (sph.runs.code_fingerprint), settings.py and the named scripts of
+    """Hash of the solver's code (sph.harness.keys.code_fingerprint), settings.py and the named scripts of
     this folder (with the sph modules they import, e.g. sph.cases.tgv3d and sph.relax)."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", *scripts)])
+    return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])
 
 
 def relax_fingerprint(exp: Experiment, n: int) -> str:

@@ -9,7 +9,8 @@ count, which the relaxed start changes by a few per cent at most.
 """
 import argparse
 
-from sph import runs, simulate
+from sph import simulate
+from sph.harness import cli
 
 try:
     from . import run as R, settings as S
@@ -37,8 +38,8 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=40, help="steps timed per run (after compilation)")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    ns = runs.select("--n", args.n, list(exp.n_side)) or list(exp.n_side)
-    methods = runs.select("--only", args.only, [m.name for m in exp.methods])
+    ns = cli.select("--n", args.n, list(exp.n_side)) or list(exp.n_side)
+    methods = cli.select("--only", args.only, [m.name for m in exp.methods])
     print(f"{'method':>8} {'n':>4} {'particles':>9} {'slots':>5} {'ms/step':>8} {'compile s':>9} "
           f"{'steps to t_end':>14} {'full run h':>10}  ({exp.numerics.dtype}, {exp.numerics.neighbor_search})")
     for n in ns:
@@ -50,6 +51,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

@@ -1,6 +1,6 @@
 # Thermal studies (experiments/thermal/README.md): heat-operator validation and paper Fig. 10.
 # Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see sph.runs) through sph.stamp, whose
+# always call their run script (its cache decides what re-runs, see sph.harness.runs) through sph.harness.stamp, whose
 # stamp changes only when an output changed.
 # Each study has its own stamp; `make fig10` builds the channel figure and the heat-operator
 # validation (`make heat-validation` alone builds the latter). The
@@ -14,10 +14,10 @@ THERMAL_CHAN  := $(RESULTS)/thermal/channel.done
 .PHONY: heat-validation fig10
 
 $(THERMAL_SINE): FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(THERMAL)/run.py --task sine --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(THERMAL)/run.py --task sine --profile $(PROFILE) --results $(RESULTS)
 
 $(THERMAL_CHAN): FORCE | $(VENV)
-	$(PY) -m sph.stamp $@ $(dir $@) -- $(PY) $(THERMAL)/run.py --task channel --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(THERMAL)/run.py --task channel --profile $(PROFILE) --results $(RESULTS)
 
 heat-validation: $(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/metrics.csv
 $(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/heat_validation.pdf $(RESULTS)/heat_validation/metrics.csv &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py

@@ -31,9 +31,10 @@ import numpy as np
 import pandas as pd
 
 import sph
-from sph import heat, io, runs, simulate
+from sph import heat, simulate
+from sph.harness import cli, io, record, runs, tables
 from sph.cases import channel
-from sph.configtools import to_mapping
+from sph.harness.configtools import to_mapping
 from sph.domain import Domain
 from sph.lattice import cartesian
 from sph.scene import Scene
@@ -151,10 +152,10 @@ def record_sine(exp, dx, results) -> dict:
     row = sine_row(exp, dx, results)
     rows = [sine_row(exp, x, results) for x in exp.diffusion.dx
             if _is_current(S.sine_dir(results, x), S.sine_fingerprint(exp.diffusion, x), "series.csv")]
-    runs.write_table(S.out_dir(results) / "sine_metrics.csv", rows, sort=["dx"], ascending=False)
+    tables.write_table(S.out_dir(results) / "sine_metrics.csv", rows, sort=["dx"], ascending=False)
     folder = S.sine_dir(results, dx)
-    meta = runs.read_metadata(folder / "metadata.json")
-    runs.save_record(folder, {**{k: np.nan for k in runs.RECORD_COLUMNS},
+    meta = io.read_metadata(folder / "metadata.json")
+    record.save_record(folder, {**{k: np.nan for k in record.RECORD_COLUMNS},
                               "experiment": S.NAME, "target": "heat-validation", "method": "heat", "effects": "heat",
                               "kernel": exp.diffusion.numerics.kernel, "dx": dx, "dim": 2,
                               "dtype": exp.diffusion.numerics.dtype, "n_particles": row["n_particles"],
@@ -339,7 +340,7 @@ def channel_row(exp: "S.Experiment", results) -> dict:
 def record_channel(exp, results) -> dict:
     """The channel's row; channel_metrics.csv holds exactly the current config's channel run."""
     row = channel_row(exp, results)
-    runs.write_table(S.out_dir(results) / "channel_metrics.csv", [row])
+    tables.write_table(S.out_dir(results) / "channel_metrics.csv", [row])
     return row
 
 
@@ -364,11 +365,11 @@ def main(argv=None):
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     exp = S.load(args.profile)
-    dxs = runs.select("--dx", args.dx, list(exp.diffusion.dx))
+    dxs = cli.select("--dx", args.dx, list(exp.diffusion.dx))
     run_all(exp, args.results or f"results/{args.profile}", args.task, dxs, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.cli import main_guard
+    from sph.harness.cli import main_guard
 
     main_guard(main)

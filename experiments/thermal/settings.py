@@ -12,7 +12,8 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.configtools import digest, load_profile, require, require_finite, source_hash, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -183,7 +184,7 @@ def metrics_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of the solver sources (sph/**/*.py) and of this folder's settings.py and run.py."""
-    return source_hash(ROOT, [HERE / n for n in ("settings.py", "run.py")])
+    return code_fingerprint([HERE / n for n in ("settings.py", "run.py")])
 
 
 def sine_fingerprint(d: Diffusion, dx: float) -> str:

@@ -1,9 +1,15 @@
-"""XLA's CPU flags that this project's pair sums run fastest with, set when `sph` is imported.
+"""XLA's CPU flags that this project's pair sums run fastest with, set by the entry points.
 
-Process-wide by nature (XLA reads XLA_FLAGS once, when its CPU backend starts): `import sph` before the
-first JAX computation of a process for it to take effect; `SPH_XLA_DEFAULTS=0` turns it off. It changes
-only how XLA's CPU backend compiles reductions (not what they compute: results agree to round-off), and
-nothing on GPU or TPU.
+`import sph` leaves the process alone; the scripts (`sph.harness.cli.main_guard` / `profile_main`),
+the benchmarks and the tests' conftest call `set_cpu_defaults()` before their first JAX computation,
+and a library user opts in with the same call:
+
+    import sph.harness.xla_cpu
+    sph.harness.xla_cpu.set_cpu_defaults()     # before the first JAX computation of the process
+
+Process-wide by nature (XLA reads XLA_FLAGS once, when its CPU backend starts); `SPH_XLA_DEFAULTS=0`
+turns it off. It changes only how XLA's CPU backend compiles reductions (not what they compute:
+results agree to round-off), and nothing on GPU or TPU.
 """
 import os
 
@@ -15,8 +21,8 @@ def set_cpu_defaults():
     of a step (an elementwise chain over (rows, K) reduced over K) that call is 1.2-1.9x slower than
     XLA's own fused loop (TGV, float64: 2D dx 0.02 2.7 -> 1.4 ms per step, 3D 32^3 161 -> 113 ms;
     float32 2D 1.85 -> 1.55 ms, 3D unchanged). XLA reads its flags once, when its backend starts, so
-    this takes effect only if `sph` is imported before the first JAX computation of the process
-    (scripts import it first); later it is a no-op. Appended to XLA_FLAGS (inherited by child
+    this takes effect only if called before the first JAX computation of the process (the
+    entry points call it first); later it is a no-op. Appended to XLA_FLAGS (inherited by child
     processes) unless the flag is already set there, only for the jaxlib versions it was measured
     with (an unknown flag aborts XLA), and not at all with SPH_XLA_DEFAULTS=0."""
     flag = "--xla_cpu_experimental_ynn_fusion_type"

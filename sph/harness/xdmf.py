@@ -1,11 +1,11 @@
-"""XDMF sidecars: open a trajectory file (LagrangeBench layout, sph.io) directly in ParaView.
+"""XDMF sidecars: open a trajectory file (LagrangeBench layout, sph.harness.io) directly in ParaView.
 
 `write_sidecar("traj.h5")` writes ``traj.xdmf`` beside it: a temporal collection with one grid per
 frame, the particles as a Polyvertex mesh whose geometry and attributes are hyperslabs of the HDF5
 datasets (nothing is copied). In ParaView: File > Open > traj.xdmf ("Xdmf3 Reader T"), then e.g.
 the Point Gaussian representation coloured by velocity.
 
-    python -m sph.xdmf results/paper/tgv2d/tvf_dx0.01/traj.h5     # (re)write the sidecar by hand
+    python -m sph.harness.xdmf results/paper/tgv2d/tvf_dx0.01/traj.h5     # (re)write the sidecar by hand
 """
 import sys
 from pathlib import Path

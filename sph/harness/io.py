@@ -28,14 +28,12 @@ import h5py
 import jax.numpy as jnp
 import numpy as np
 
-from .state import ParticleState
+from ..simulate import SERIES  # noqa: F401  (the per-frame series the driver records)
+from ..state import ParticleState
 
 FIELDS = {"position": "r", "velocity": "v", "momentum_velocity": "u", "density": "rho", "pressure": "p",
           "temperature": "T"}
 """Per-particle trajectory datasets and the ParticleState field each one stores."""
-
-SERIES = ("time", "step", "u_max", "e_kin", "density_error")
-"""Per-frame scalar datasets."""
 
 DEFAULT_KEEP = ("velocity", "density", "pressure")
 
@@ -262,6 +260,14 @@ def lagrangebench_metadata(*, case: str, solver: str, dim: int, dx: float, dt: f
     }
     meta.update(extra)
     return meta
+
+
+def read_metadata(path) -> Optional[dict]:
+    """metadata.json as a dict, or None when it is missing or not valid JSON."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def write_metadata(path, metadata: dict):

@@ -1,6 +1,6 @@
 """A short animated GIF of one run: the particles of a trajectory file, coloured by a field.
 
-`render("traj.h5", "run.gif")` reads a trajectory (sph.io's layout) and draws, for a bounded number
+`render("traj.h5", "run.gif")` reads a trajectory (sph.harness.io's layout) and draws, for a bounded number
 of frames sampled evenly from the stored ones (first and last included), the fluid particles as
 dots coloured by a field (`speed` = |v| by default; `pressure`, `density` or `temperature` where the
 run stored them), the wall particles in grey (moving walls darker), on axes fixed to the run's
@@ -12,9 +12,9 @@ and dpi, particles beyond `max_particles` subsampled: a few MB at most, to look 
 
 A 3D trajectory is drawn as its mid-plane slice: the particles in a slab one dx thick at the middle
 of the domain in z, projected on x-y (ParaView on traj.xdmf for the whole volume).
-Only reads finished files, so it cannot change a run's numbers (sph.runs.NUMBER_NEUTRAL).
+Only reads finished files, so it cannot change a run's numbers (sph.harness.keys.NUMBER_NEUTRAL).
 
-    python -m sph.animate results/paper/tgv2d/tvf_dx0.01/traj.h5 tgv.gif [--field pressure] [--frames 60]
+    python -m sph.harness.animate results/paper/tgv2d/tvf_dx0.01/traj.h5 tgv.gif [--field pressure] [--frames 60]
 """
 import argparse
 import json
@@ -29,8 +29,8 @@ from matplotlib.figure import Figure
 from PIL import Image
 
 from . import io
-from .configtools import ConfigError
-from .state import FLUID, MOVING_WALL
+from ..errors import ConfigError
+from ..state import FLUID, MOVING_WALL
 
 FIELDS = {
     "speed": (("velocity", "momentum_velocity"), "|v|"),
@@ -129,7 +129,7 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
     pos = tr["position"]
     dim = pos.shape[-1]
     if dim not in (2, 3):
-        raise ConfigError(f"{traj_path}: dim = {dim}; sph.animate draws 2D runs and mid-plane slices of 3D ones")
+        raise ConfigError(f"{traj_path}: dim = {dim}; sph.harness.animate draws 2D runs and mid-plane slices of 3D ones")
     if pos.shape[0] == 0:
         raise ConfigError(f"{traj_path}: the trajectory has no frames")
     values = field_values(tr, field, traj_path)

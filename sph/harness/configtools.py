@@ -2,11 +2,12 @@
 
 `from_mapping(Cls, data, where)` rejects unknown keys and wrong types with a message that names the
 full key path (e.g. ``numerics.cfl``), and recurses into nested config dataclasses. Classes add
-their own value checks in ``__post_init__`` by raising ``ConfigError`` via ``require``.
+their own value checks in ``__post_init__`` by raising ``ConfigError`` via ``require`` (both from
+the core's `sph.errors`, re-exported here for the experiments' settings). `load_profile(cls, path,
+profile)` reads one profile of a YAML file with ``inherit`` between profiles, its errors naming the
+file, the profile that wrote the bad key and the key.
 """
 import dataclasses
-import hashlib
-import json
 import math
 import re
 import types
@@ -16,7 +17,7 @@ from typing import Optional
 
 import yaml
 
-from .errors import ConfigError, is_finite_number, require, require_finite  # noqa: F401  (re-exported)
+from ..errors import ConfigError, is_finite_number, require, require_finite  # noqa: F401  (re-exported)
 
 
 def _check_type(value, tp, key, allow_inf: bool = False):
@@ -253,17 +254,3 @@ def _resolve_profile(profiles: dict, name: str, seen: tuple):
         raise ConfigError(f"profiles.{name}.inherit: expected a profile name, got {parent!r}")
     base, origins = _resolve_profile(profiles, parent, seen + (name,))
     return merge(base, own), _merge_origins(origins, own, name)
-
-
-def digest(obj) -> str:
-    """Short stable hash of a JSON-able object (configs via `to_mapping`), for run fingerprints."""
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def source_hash(root, files) -> str:
-    """Cache key of the code behind a result: the solver's physics modules and the sph modules the
-    given experiment `files` import (transitively), plus those files, each without docstrings and
-    comments (`sph.runs.code_fingerprint`); `root` is kept for the callers' signature."""
-    from .runs import code_fingerprint  # runs imports this module
-
-    return code_fingerprint(files)

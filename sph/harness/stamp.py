@@ -1,6 +1,6 @@
 """Make stamps that change only when a run step changed its outputs.
 
-    python -m sph.stamp STAMP DIR -- COMMAND ...
+    python -m sph.harness.stamp STAMP DIR -- COMMAND ...
 
 runs COMMAND (a run script, whose own cache decides what to re-run), then writes a digest of the
 files under DIR into STAMP, but only when it differs from the one already there. Make re-reads the
@@ -48,7 +48,7 @@ def update(stamp, folder) -> bool:
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if len(argv) < 4 or argv[2] != "--":
-        print("usage: python -m sph.stamp STAMP DIR -- COMMAND ...", file=sys.stderr)
+        print("usage: python -m sph.harness.stamp STAMP DIR -- COMMAND ...", file=sys.stderr)
         return 2
     stamp, folder, cmd = argv[0], argv[1], argv[3:]
     rc = subprocess.call(cmd)

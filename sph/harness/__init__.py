@@ -1,0 +1,16 @@
+"""The harness: what runs the physics core (`sph`) for an experiment, and never the other way round.
+
+  configtools.py   frozen config dataclasses from YAML profiles (`inherit`), errors naming the key
+  keys.py          cache keys: config digests, code fingerprints without docstrings and comments
+  runs.py          the cached run: skip a current run, resume a partial one, set aside a stale one
+  record.py        the run record every experiment writes (what `make accuracy` gathers)
+  tables.py        metrics tables (csv), rewritten from the current config's runs
+  io.py, xdmf.py   trajectory files (LagrangeBench layout, resumable) and their ParaView sidecars
+  animate.py       a short GIF of a trajectory
+  cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
+  stamp.py         make stamps that change only when a run step changed its outputs
+  xla_cpu.py       XLA's CPU flags for the pair sums, set by the entry points
+
+Imports go from here to the core only (`sph.errors`, `sph.simulate`, ...). Which of these modules can
+change a run's numbers, and so enter its cache key, is `keys.NUMBER_NEUTRAL`'s complement.
+"""

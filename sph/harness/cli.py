@@ -1,0 +1,101 @@
+"""The command line of every script: its `--profile` / `--results` tail, and errors as one line.
+
+    from sph.harness.cli import profile_main
+
+    def main(args):                 # args.profile, args.results (default results/<profile>), own options
+        ...
+
+    if __name__ == "__main__":
+        profile_main(main, __doc__, options=lambda ap: ap.add_argument("--only", nargs="*"))
+
+`profile_main(main, doc, options)` parses `--profile` (default paper), `--results` (default
+results/<profile>) and the script's own options (`options(parser)` adds them), then calls
+`main(args)` through `main_guard`. `main_guard(fn, *args)` sets XLA's CPU defaults
+(`sph.harness.xla_cpu`, before the script's first JAX computation), calls `fn(*args)` and returns
+its result. If it raises
+
+    ConfigError               (a bad key or value, a degenerate scene, InsufficientMemory)
+                              prints "error: <file>: profiles.<profile>.<key>: <what>" and exits 2;
+                              the profile named is the one the key is written in, e.g. `paper`
+                              when `smoke` inherits the bad key from it (`configtools.load_profile`)
+    SimulationError           (BlowUp, ParticleEscaped, NeighborOverflow: step, particle, position,
+                              likely cause, where the last good frame is kept) prints
+                              "error: <message>" and exits 3
+
+on stderr, without a traceback (set SPH_TRACEBACK=1 to see it). Everything else propagates.
+`format_error(e)` is the line it prints. `select(option, given, allowed)` checks a command-line
+subset (`--only`, `--dx`) against the profile's own values.
+"""
+import argparse
+import os
+import sys
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..diagnostics import SimulationError
+from ..errors import ConfigError
+from .xla_cpu import set_cpu_defaults
+
+EXIT_CONFIG = 2
+EXIT_SIMULATION = 3
+
+
+def format_error(e: BaseException) -> str:
+    """One line: the error's message with newlines folded, prefixed by its kind."""
+    kind = "config error" if isinstance(e, ConfigError) else f"{type(e).__name__}"
+    text = " ".join(str(e).split())
+    return f"error ({kind}): {text}"
+
+
+def main_guard(fn, *args, **kwargs):
+    """Run `fn(*args, **kwargs)` after setting XLA's CPU defaults; ConfigError -> one line on stderr
+    and exit code 2, SimulationError -> one line and exit code 3 (see the module docstring).
+    Returns fn's result otherwise."""
+    set_cpu_defaults()
+    try:
+        return fn(*args, **kwargs)
+    except (ConfigError, SimulationError) as e:
+        if os.environ.get("SPH_TRACEBACK"):
+            raise
+        print(format_error(e), file=sys.stderr, flush=True)
+        raise SystemExit(EXIT_CONFIG if isinstance(e, ConfigError) else EXIT_SIMULATION) from None
+
+
+def profile_parser(doc: Optional[str], options: Optional[Callable] = None) -> argparse.ArgumentParser:
+    """The parser of a script: `--profile`, `--results` and the options `options(parser)` adds."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper", help="profile of the config file (default paper)")
+    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+    if options is not None:
+        options(ap)
+    return ap
+
+
+def profile_args(doc: Optional[str], argv=None, options: Optional[Callable] = None) -> argparse.Namespace:
+    """The parsed command line (`profile_parser`), `results` defaulting to results/<profile>."""
+    args = profile_parser(doc, options).parse_args(argv)
+    if args.results is None:
+        args.results = f"results/{args.profile}"
+    return args
+
+
+def profile_main(main: Callable, doc: Optional[str], options: Optional[Callable] = None, argv=None):
+    """A script's command-line tail: `main(profile_args(doc, argv, options))` through `main_guard`."""
+    return main_guard(lambda: main(profile_args(doc, argv, options)))
+
+
+def select(option: str, given: Optional[list], allowed: list) -> Optional[list]:
+    """A command-line subset (`--only`, `--dx`) of the config's own values, or None for all of
+    them. A value the config does not have is an error naming the option: the config, validated
+    on load, is the only place that defines runs (`--dx 0.03` cannot bypass its rules)."""
+    if given is None:
+        return None
+    out = []
+    for g in given:
+        match = [a for a in allowed if (np.isclose(a, g, rtol=1e-9, atol=0) if isinstance(a, float) else a == g)]
+        if not match:
+            raise ConfigError(f"{option} {g!r}: not one of this profile's values {list(allowed)}; "
+                              "add it to the profile in config.yaml (where it is validated) to run it")
+        out.append(match[0])
+    return out

@@ -1,0 +1,42 @@
+"""The run record: one schema for every experiment's finished runs, what the accuracy-cost atlas
+(`make accuracy`) gathers.
+
+`record(folder, ...)` reads a finished run's metadata.json into `RECORD_COLUMNS`, then the run's
+error metrics as ``err_<name>`` columns, then any extra columns; `save_record` writes it as
+record.json in the run folder.
+"""
+from pathlib import Path
+
+import numpy as np
+
+from . import io
+
+RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
+                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb")
+"""The fixed columns of a run record; the run's error metrics follow as err_<name>."""
+
+
+def record(folder, *, experiment: str, target: str, method: str, errors: dict, **extra) -> dict:
+    """The run record of a finished run in `folder` (from its metadata.json and traj.h5 attrs):
+    RECORD_COLUMNS, then `errors` as err_<name>, then `extra` columns."""
+    folder = Path(folder)
+    meta = io.read_metadata(folder / "metadata.json")
+    if meta is None:
+        raise FileNotFoundError(f"{folder / 'metadata.json'}: missing or damaged; re-run the experiment")
+    n_steps = int(meta.get("n_steps", 0))
+    wall = float(meta.get("wall_s", np.nan))
+    rec = {"experiment": experiment, "target": target, "method": method,
+           "effects": "+".join(meta.get("effects", [])) or "standard", "kernel": meta.get("kernel", ""),
+           "h_factor": float((meta.get("numerics") or {}).get("h_factor", np.nan)), "dx": float(meta["dx"]), "dim": int(meta["dim"]), "dtype": meta["dtype"],
+           "n_particles": int(meta["num_particles_max"]), "n_steps": n_steps, "dt": float(meta["dt"]),
+           "t_end": float(meta["t_end"]), "wall_s": wall, "compile_s": float(meta.get("compile_s", np.nan)),
+           "ms_per_step": 1e3 * wall / n_steps if n_steps else np.nan,
+           "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan))}
+    rec.update({f"err_{k}": float(v) for k, v in errors.items()})
+    rec.update(extra)
+    return rec
+
+
+def save_record(folder, rec: dict) -> None:
+    """Write the run record as record.json in the run folder (what `make accuracy` gathers)."""
+    io.write_metadata(Path(folder) / "record.json", rec)
