@@ -7,9 +7,14 @@
 scaling: | $(VENV)
 	nice $(PY) bench/bench_scaling.py --out results/bench
 
-# JAX-SPH 0.1.0 lives in the LagrangeBench environment
-bench-peer: | $(VENV) .venv-lb/.stamp
-	nice .venv-lb/bin/python bench/bench_peer.py --out results/bench
+# JAX-SPH 0.1.0 in its own pinned environment (.venv-peer: jax 0.4.29, built here on first use, never by
+# `make test`) against ours in .venv, one process each: the headline rows; beside them both codes in
+# one process on the project's jax (.venv-lb, where JAX-SPH 0.1.0 is installed for LagrangeBench)
+bench-peer: | $(VENV) .venv-lb/.stamp .venv-peer/.stamp
+	nice $(PY) -m bench.bench_peer --out results/bench
+
+.venv-peer/.stamp: environment-peer.txt scripts/setup_peer.sh
+	bash scripts/setup_peer.sh
 
 bench-neighbors: | $(VENV)
 	nice $(PY) bench/bench_neighbors.py
