@@ -42,7 +42,7 @@ $(VENV): environment.txt pyproject.toml
 	touch $@
 
 setup-lb: .venv-lb/.stamp
-.venv-lb/.stamp: environment.txt environment-lagrangebench.txt scripts/setup_lagrangebench.sh
+.venv-lb/.stamp: environment.txt environment-lagrangebench.txt pyproject.toml scripts/setup_lagrangebench.sh
 	bash scripts/setup_lagrangebench.sh
 
 # the tests run in TEST_WORKERS processes (pytest-xdist), a test file per worker at a time: most of a

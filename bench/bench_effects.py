@@ -67,4 +67,6 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from sph.harness.cli import main_guard
+
+    main_guard(main)  # sets XLA's CPU defaults first

@@ -107,6 +107,9 @@ def main():
     if args.one:
         print("RESULT " + json.dumps(measure_one(**json.loads(args.one))), flush=True)
         return
+    from sph.harness.xla_cpu import set_cpu_defaults
+
+    set_cpu_defaults()  # in XLA_FLAGS, which the measuring children inherit
     import pandas as pd
 
     if args.quick:

@@ -22,7 +22,7 @@ from sph.rollout import make_chunk
 
 try:
     from . import bench_effects
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import bench_effects
 
 
@@ -91,4 +91,6 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from sph.harness.cli import main_guard
+
+    main_guard(main)  # sets XLA's CPU defaults first

@@ -58,8 +58,7 @@ def child(dim, side, steps, method, rounds):
     import sph
     from sph.rollout import make_chunk
 
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from bench_scaling import tgv2d_scene, tgv3d_scene
+    from bench_scaling import tgv2d_scene, tgv3d_scene  # this script's folder comes first on the import path
 
     effects = {"sph": sph.Effects(), "tvf": sph.Effects(tvf=True),
                "riemann": sph.Effects(riemann=True, density_evolution=True)}[method]
@@ -108,6 +107,9 @@ def main():
         dim, side, steps, method, rounds = args.child
         child(int(dim), int(side), int(steps), method, int(rounds))
         return
+    from sph.harness.xla_cpu import set_cpu_defaults
+
+    set_cpu_defaults()  # in XLA_FLAGS, which the children (either checkout's sph) inherit
     head = f"{'case':10s} {'method':8s} {'N':>7s} {'K':>4s} {'ms/step min':>11s} {'median':>8s} {'peak GB':>7s}"
     print(head + (f" {'other min':>9s} {'median':>8s} {'peak GB':>7s} {'speed-up':>8s}" if args.compare else ""))
     for name in args.cases:

@@ -38,7 +38,7 @@ from sph.cases import ldc, tgv
 from sph.rollout import scan_rollout
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 METRIC_COLUMNS = ["case", "dtype", "dx", "n_fluid", "n_particles", "dt", "warmup_steps", "loss_steps", "eps",

@@ -24,7 +24,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 try:  # noqa: E402
     from . import scene as cube
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import scene as cube
     import settings as S
 

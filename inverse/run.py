@@ -53,7 +53,7 @@ from sph.rollout import scan_rollout
 try:
     from . import scene as cube
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import scene as cube
     import settings as S
 

@@ -8,9 +8,12 @@
 #   4. pip install -r environment-lagrangebench.txt         (minus the two below;
 #                                                            overrides e3nn-jax)
 #   5. pip install --no-deps --ignore-requires-python lagrangebench==0.2.0 jax-sph==0.1.0
-#   6. check: pip freeze == environment.txt + environment-lagrangebench.txt,
+#   6. pip install --no-deps -e .                           (this project, editable, as in .venv:
+#                                                            sph, sitl, lbcompat import from anywhere)
+#   7. check: pip freeze (editable installs aside) == environment.txt +
+#      environment-lagrangebench.txt, this project is the one editable install,
 #      pip check shows only the known-ignored pins, `import lagrangebench` works
-#   7. touch .venv-lb/.stamp
+#   8. touch .venv-lb/.stamp
 #
 # Idempotent: exits at once when .venv-lb/.stamp is newer than both env files
 # (and than this script, matching the Makefile rule's prerequisites).
@@ -28,6 +31,7 @@ VENV="${LB_VENV:-$ROOT/.venv-lb}"
 PYTHON="${PYTHON:-python3}"
 CORE_REQS="$ROOT/environment.txt"
 LB_REQS="$ROOT/environment-lagrangebench.txt"
+PYPROJECT="$ROOT/pyproject.toml"
 STAMP="$VENV/.stamp"
 FORCE=0
 
@@ -46,16 +50,17 @@ for f in "$CORE_REQS" "$LB_REQS"; do
   [[ -f "$f" ]] || die "missing $f"
 done
 
-# Same inputs as the Makefile rule for .venv-lb/.stamp: both pin files and
-# this script (a changed install procedure also means a rebuild).
+# Same inputs as the Makefile rule for .venv-lb/.stamp: both pin files, the
+# project's pyproject.toml (its editable install) and this script (a changed
+# install procedure also means a rebuild).
 is_fresh() {
   [[ "$FORCE" == 0 && -f "$STAMP" && -x "$VENV/bin/python" \
      && "$STAMP" -nt "$CORE_REQS" && "$STAMP" -nt "$LB_REQS" \
-     && "$STAMP" -nt "${BASH_SOURCE[0]}" ]]
+     && "$STAMP" -nt "$PYPROJECT" && "$STAMP" -nt "${BASH_SOURCE[0]}" ]]
 }
 
 if is_fresh; then
-  log "$VENV is up to date (stamp newer than environment*.txt and this script); nothing to do"
+  log "$VENV is up to date (stamp newer than environment*.txt, pyproject.toml and this script); nothing to do"
   exit 0
 fi
 
@@ -100,7 +105,7 @@ if [[ -e "$VENV" ]]; then
   log "removing stale/incomplete $VENV"
   rm -rf "$VENV"
 fi
-log "step 1/7: creating $VENV with $PYTHON ($PYVER)"
+log "step 1/8: creating $VENV with $PYTHON ($PYVER)"
 "$PYTHON" -m venv "$VENV"
 # Keep the env out of git without touching the repo's .gitignore.
 echo '*' > "$VENV/.gitignore"
@@ -115,23 +120,27 @@ pip_install() {
     | { grep -v -E "^WARNING: Location 'file://[^']*' is ignored: it is neither a file nor a directory\.$" || true; }
 }
 
-log "step 2/7: core pins: pip install -r environment.txt"
+log "step 2/8: core pins: pip install -r environment.txt"
 pip_install -r "$CORE_REQS"
 
-log "step 3/7: $TORCH_PIN (CPU build, local wheel)"
+log "step 3/8: $TORCH_PIN (CPU build, local wheel)"
 if ! pip_install "$TORCH_PIN" -c "$TMPD/extras.txt"; then
   die "could not install $TORCH_PIN. It is the CPU wheel from pip's find-links (/opt/wheels here); pip must not fall back to the CUDA build from the index."
 fi
 
-log "step 4/7: extras: pip install -r environment-lagrangebench.txt (minus lagrangebench, jax-sph)"
+log "step 4/8: extras: pip install -r environment-lagrangebench.txt (minus lagrangebench, jax-sph)"
 pip_install -r "$TMPD/extras.txt"
 
-log "step 5/7: $LB_PIN $JAXSPH_PIN (--no-deps --ignore-requires-python)"
+log "step 5/8: $LB_PIN $JAXSPH_PIN (--no-deps --ignore-requires-python)"
 pip_install --no-deps --ignore-requires-python "$LB_PIN" "$JAXSPH_PIN"
 
+log "step 6/8: this project, editable: pip install --no-deps -e $ROOT"
+pip_install --no-deps -e "$ROOT"
+
 # --- checks -------------------------------------------------------------------
-log "step 6/7: checking installed set against environment.txt + environment-lagrangebench.txt"
-"$VPY" -m pip freeze --all --disable-pip-version-check > "$TMPD/freeze.txt"
+log "step 7/8: checking installed set against environment.txt + environment-lagrangebench.txt"
+# the editable install of this project is not a pin: left out here, checked below
+"$VPY" -m pip freeze --all --exclude-editable --disable-pip-version-check > "$TMPD/freeze.txt"
 "$VPY" - "$CORE_REQS" "$LB_REQS" "$TMPD/freeze.txt" <<'PY'
 import re, sys
 
@@ -162,6 +171,19 @@ if problems:
              + "\n".join(problems))
 print(f"setup_lagrangebench: {len(installed)} packages, all match the pins")
 PY
+"$VPY" -m pip list --editable --format=freeze --disable-pip-version-check > "$TMPD/editable.txt"
+[[ "$(sed -e 's/==.*//' "$TMPD/editable.txt" | tr '[:upper:]_' '[:lower:]-')" == "jax-sph-repro" ]] \
+  || die "expected this project (jax-sph-repro) as the only editable install, got: $(tr '\n' ' ' < "$TMPD/editable.txt")"
+(cd / && "$VPY" - "$ROOT" <<'PY'
+import importlib.util, os, sys
+for name in ("sph", "sitl", "experiments", "lbcompat"):
+    spec = importlib.util.find_spec(name)
+    where = (spec.origin or "") if spec and spec.origin else " ".join(spec.submodule_search_locations or []) if spec else ""
+    if not where.startswith(sys.argv[1] + os.sep):
+        sys.exit(f"setup_lagrangebench: ERROR: {name} is not found in {sys.argv[1]} from outside it (found: {where or 'nothing'})")
+PY
+)
+log "editable install: $(cat "$TMPD/editable.txt") from $ROOT"
 
 # lagrangebench / jax-sph metadata still asks for jax 0.4.29 etc. (that is why
 # they go in with --no-deps); any OTHER broken requirement is an error.
@@ -176,7 +198,7 @@ fi
 log "pip check: only the ignored jax/jaxlib/optax/torch pins of lagrangebench/jax-sph differ"
 
 log "smoke test: import lagrangebench via lbcompat"
-(cd "$ROOT" && PYTHONPATH="$ROOT" JAX_PLATFORMS=cpu "$VPY" -W ignore::DeprecationWarning -c \
+(cd "$ROOT" && JAX_PLATFORMS=cpu "$VPY" -W ignore::DeprecationWarning -c \
   'import lbcompat; lb = lbcompat.import_lagrangebench(); print("setup_lagrangebench: lagrangebench", lb.__version__, "from", lb.__file__)')
 
 {

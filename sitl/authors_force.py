@@ -15,28 +15,23 @@ Writes results/<profile>/sitl/metrics/solver_authors_force.json (never read by T
 """
 import dataclasses
 import json
-import sys
 import warnings
-from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sitl import common as C  # first: it sets up LagrangeBench
 
-from sitl import common as C  # noqa: E402  (sets up LagrangeBench first)
+import haiku as hk
+import jax
+import jax.numpy as jnp
+from lagrangebench import infer
+from lagrangebench.evaluate import averaged_metrics
 
-import haiku as hk  # noqa: E402
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-from lagrangebench import infer  # noqa: E402
-from lagrangebench.evaluate import averaged_metrics  # noqa: E402
-
-import sph  # noqa: E402
-from sitl import generate  # noqa: E402
-from sitl import model as M  # noqa: E402
-from sitl import settings as S  # noqa: E402
-from sitl.cli import profile_args  # noqa: E402
-from sitl.evaluate import KEYS  # noqa: E402
-from sph.forces import ConstantForce  # noqa: E402
+import sph
+from sitl import generate
+from sitl import model as M
+from sitl import settings as S
+from sitl.evaluate import KEYS
+from sph.forces import ConstantForce
+from sph.harness.cli import profile_main
 
 
 def uniform_force_model(exp: S.Experiment, data_train, case_fns):
@@ -72,8 +67,8 @@ def evaluate(exp: S.Experiment, results, kind: str) -> dict:
     return {"n_rollouts": len(metrics), **{k: float(avg[v]) for k, v in KEYS.items()}}
 
 
-def main(argv=None):
-    exp, results, _ = profile_args(__doc__, argv)
+def main(args):
+    exp, results = S.load(args.profile), args.results
     out = {"per_particle": evaluate(exp, results, "per_particle"), "uniform": evaluate(exp, results, "uniform")}
     dest = S.metrics_path(results, "solver").with_name("solver_authors_force.json")
     dest.parent.mkdir(parents=True, exist_ok=True)
@@ -85,4 +80,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__)

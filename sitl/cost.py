@@ -53,34 +53,30 @@ the same inputs (data, config, code, trained models' metrics) does nothing.
 
     .venv-lb/bin/python sitl/cost.py --profile smoke [--results results/smoke] [--force]
 """
-import argparse
 import csv
 import dataclasses
 import json
 import math
 import shutil
-import sys
 import time
 from pathlib import Path
 from typing import Optional
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import haiku as hk  # noqa: E402
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
+import haiku as hk
+import jax
+import jax.numpy as jnp
+import numpy as np
 
 # LagrangeBench (sitl.common, then lagrangebench.*) is imported only when something is measured:
 # its import takes ~10 s, the up-to-date check of an unchanged call none
-from sitl import generate  # noqa: E402
-from sitl import model as M  # noqa: E402
-from sitl import settings as S  # noqa: E402
-from sph.harness import keys, runs  # noqa: E402
-from sph.harness.configtools import to_mapping  # noqa: E402
-from sph.harness.keys import digest  # noqa: E402
-from sph.harness.record import RECORD_COLUMNS, save_record  # noqa: E402
+from sitl import generate
+from sitl import model as M
+from sitl import settings as S
+from sph.harness import keys, runs
+from sph.harness.cli import profile_main
+from sph.harness.configtools import to_mapping
+from sph.harness.keys import digest
+from sph.harness.record import RECORD_COLUMNS, save_record
 
 HERE = Path(__file__).resolve().parent
 CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py")]
@@ -425,17 +421,13 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     return rows
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
+def options(ap):
     ap.add_argument("--force", action="store_true", help="measure again even if the inputs are unchanged")
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    run(exp, args.results or f"results/{args.profile}", args.profile, args.force)
+
+
+def main(args):
+    run(S.load(args.profile), args.results, args.profile, args.force)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
-
-    main_guard(main)
+    profile_main(main, __doc__, options)

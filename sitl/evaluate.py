@@ -12,27 +12,22 @@ results/<profile>/sitl/rollouts/<model>/.
 
     .venv-lb/bin/python sitl/evaluate.py --profile smoke --model solver
 """
-import argparse
 import json
 import shutil
-import sys
 import time
-from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sitl import common as C  # first: it sets up LagrangeBench
 
-from sitl import common as C  # noqa: E402  (sets up LagrangeBench first)
+import jax
+import jax.numpy as jnp
+import numpy as np
+from lagrangebench import infer
+from lagrangebench.evaluate import averaged_metrics
+from lagrangebench.utils import load_haiku
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-from lagrangebench import infer  # noqa: E402
-from lagrangebench.evaluate import averaged_metrics  # noqa: E402
-from lagrangebench.utils import load_haiku  # noqa: E402
-
-from sitl import generate  # noqa: E402
-from sitl import settings as S  # noqa: E402
+from sitl import generate
+from sitl import settings as S
+from sph.harness.cli import profile_main
 
 KEYS = {"mse5": "val/mse5", "mse20": "val/loss", "e_kin": "val/e_kin", "sinkhorn": "val/sinkhorn"}
 
@@ -99,15 +94,13 @@ def evaluate(exp: S.Experiment, results, kind: str) -> dict:
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
+def options(ap):
     ap.add_argument("--model", required=True, choices=S.MODELS)
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    evaluate(exp, args.results or f"results/{args.profile}", args.model)
+
+
+def main(args):
+    evaluate(S.load(args.profile), args.results, args.model)
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__, options)

@@ -23,14 +23,9 @@ LagrangeBench computes velocities) against the analytical start-up profile of th
 
     python sitl/generate.py --profile smoke [--results results/smoke]
 """
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import h5py
 import jax
@@ -44,6 +39,7 @@ from sph.cases import rpf
 from sph.lattice import cartesian, jitter
 from sph.rollout import allocate_covering, make_chunk
 from sitl import settings as S
+from sph.harness.cli import profile_main
 
 SPLITS = ("train", "valid", "test")
 
@@ -364,15 +360,13 @@ def ready(exp: S.Experiment, results) -> Path:
     return path
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
+def options(ap):
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    dataset(exp, args.results or f"results/{args.profile}", progress=not args.no_progress)
+
+
+def main(args):
+    dataset(S.load(args.profile), args.results, progress=not args.no_progress)
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__, options)

@@ -13,19 +13,16 @@ trained mostly to cancel the solver's reaction to noise that the test rollouts n
     .venv-lb/bin/python sitl/noise_response.py --profile cpu [--stds 3e-4 1e-4 3e-5 1e-5]
 """
 import json
-import sys
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import h5py
+import jax.numpy as jnp
+import numpy as np
 
-import h5py  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-from sitl import generate  # noqa: E402
-from sitl import model as M  # noqa: E402
-from sitl.cli import profile_args  # noqa: E402
+from sitl import generate
+from sitl import model as M
+from sitl import settings as S
+from sph.harness.cli import profile_main
 
 
 def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, dtype: str = "float32") -> list:
@@ -51,10 +48,13 @@ def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, d
     return rows
 
 
-def main(argv=None):
-    exp, results, args = profile_args(__doc__, argv, add=lambda ap: ap.add_argument(
-        "--stds", type=float, nargs="+", default=None, help="default: train.noise_std and 1/3, 1/10, 1/30 of it"))
-    path = generate.ready(exp, results)
+def options(ap):
+    ap.add_argument("--stds", type=float, nargs="+", default=None, help="default: train.noise_std and 1/3, 1/10, 1/30 of it")
+
+
+def main(args):
+    exp = S.load(args.profile)
+    path = generate.ready(exp, args.results)
     n = exp.train.noise_std
     rows = response(path, exp.model.substeps, args.stds or [n, n / 3, n / 10, n / 30])
     for r in rows:
@@ -64,4 +64,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__, options)

@@ -10,11 +10,7 @@ writes results/<profile>/fig3/fig3.png and .pdf.
 """
 import json
 import pickle
-import sys
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import matplotlib
 
@@ -23,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sitl import settings as S  # noqa: E402
-from sitl.cli import profile_args  # noqa: E402
+from sph.harness.cli import profile_main  # noqa: E402
 
 ROWS = (("truth", "ground truth"), ("solver", "solver only"), ("gns", "GNS"), ("sitl", "SitL"))
 
@@ -91,10 +87,9 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
     return dest
 
 
-def main(argv=None):
-    exp, results, args = profile_args(__doc__, argv)
-    plot(results, exp, args.profile)
+def main(args):
+    plot(args.results, S.load(args.profile), args.profile)
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__)

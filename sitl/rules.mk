@@ -1,7 +1,9 @@
 # Solver-in-the-Loop on RPF 2D, paper Fig. 3 and Table 1 (sitl/README.md), and its accuracy-cost plane.
-# Included by the top-level Makefile, which defines PROFILE and RESULTS. .venv-lb has no editable install
-# (its freeze check, docs/lagrangebench.md), so the sitl scripts put the repository root on sys.path.
-# Everything runs in .venv-lb (our core on the same jax, plus LagrangeBench 0.2.0). The dataset depends on its config, its scripts and the core;
+# Included by the top-level Makefile, which defines PROFILE and RESULTS. Everything runs in .venv-lb
+# (our core on the same jax, plus LagrangeBench 0.2.0; this project installed editable, as in .venv).
+# The dataset depends on its config and on exactly the code that can change it: generate.py,
+# settings.py and the sph modules of their code fingerprint (sph.harness.keys, the closure of the
+# solver's and their imports, the same files that sitl.settings.data_fingerprint hashes);
 # each model's metrics on the dataset, the model/training/evaluation scripts; Table 1 and Fig. 3 only
 # on the metrics / rollouts and their own script, so editing a plot or table script only re-plots.
 # Training resumes from its last checkpoint when killed (sitl/train.py).
@@ -13,12 +15,12 @@ SITL_DATA   := $(SITL_OUT)/data/2D_RPF/generate.json
 SITL_MODELS := solver gns sitl
 SITL_METRICS := $(foreach m,$(SITL_MODELS),$(SITL_OUT)/metrics/$(m).json)
 SITL_ENV    := WANDB_MODE=disabled
-SITL_CORE   := $(shell find sph -name '*.py' 2>/dev/null)
+SITL_CODE   := $(shell python3 -P sph/harness/keys.py $(SITL)/generate.py $(SITL)/settings.py 2>/dev/null)
 
 .PHONY: fig3 table1 sitl-data sitl-cost
 
 sitl-data: $(SITL_DATA)
-$(SITL_DATA): $(SITL)/config.yaml $(SITL)/settings.py $(SITL)/generate.py $(SITL_CORE) | $(SITL_VENV)
+$(SITL_DATA): $(SITL)/config.yaml $(SITL)/settings.py $(SITL)/generate.py $(SITL_CODE) | $(SITL_VENV)
 	$(SITL_PY) $(SITL)/generate.py --profile $(PROFILE) --results $(RESULTS) --no-progress
 
 $(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py | $(SITL_VENV)

@@ -12,7 +12,7 @@ from typing import Optional
 
 import sph
 from sph.harness.configtools import load_profile, require, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import code_fingerprint, digest, files_digest
 from sph.relax import Relaxation
 
 HERE = Path(__file__).resolve().parent
@@ -288,16 +288,19 @@ def data_config_digest(exp: Experiment) -> str:
 
 
 def data_fingerprint(exp: Experiment) -> str:
-    """Configuration + generator + core solver code: a dataset is regenerated when this changes."""
+    """Configuration + generator + the core code that can change the data (the sph modules of the
+    solver and of generate.py / settings.py, `sph.harness.keys.code_fingerprint`; sitl/rules.mk lists
+    the same files as the dataset's prerequisites): a dataset is regenerated when this changes."""
     return digest({"data": to_mapping(exp.data),
                    "code": code_fingerprint([HERE / "generate.py", HERE / "settings.py"])})
 
 
 def train_fingerprint(exp: Experiment, model: str, metadata_text: str) -> str:
     """A training run is continued / reused while this matches: the dataset (its configuration and
-    its metadata.json, i.e. its statistics), the model and training settings and the SitL code. The
+    its metadata.json, i.e. its statistics), the model and training settings and the SitL code
+    (model.py, train.py, common.py, each without docstrings and comments: `files_digest`). The
     core's source is deliberately not part of it, so that a core edit that leaves the data unchanged
     does not throw away hours of training."""
-    code = digest([(HERE / f).read_text() for f in ("model.py", "train.py", "common.py")])
+    code = files_digest([HERE / f for f in ("model.py", "train.py", "common.py")])
     return digest({"data": data_config_digest(exp), "metadata": metadata_text, "model": to_mapping(exp.model),
                    "train": to_mapping(exp.train), "name": model, "code": code})

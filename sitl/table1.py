@@ -6,14 +6,10 @@ sitl/evaluate.py) and writes results/<profile>/table1/table1.csv and table1.md.
 """
 import csv
 import json
-import sys
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from sitl import settings as S  # noqa: E402
-from sitl.cli import profile_args  # noqa: E402
+from sitl import settings as S
+from sph.harness.cli import profile_main
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
     "mse5": (1.7e-7, 6.7e-9, 3.3e-9),
@@ -94,10 +90,9 @@ def write(results, models=S.MODELS, profile: str = "") -> Path:
     return dest
 
 
-def main(argv=None):
-    exp, results, args = profile_args(__doc__, argv)
-    write(results, exp.models, args.profile)
+def main(args):
+    write(args.results, S.load(args.profile).models, args.profile)
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__)

@@ -10,24 +10,19 @@ and is never trained.
 
     .venv-lb/bin/python sitl/train.py --profile smoke --model sitl
 """
-import argparse
 import json
 import shutil
-import sys
 import time
-from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sitl import common as C  # first: it sets up LagrangeBench
 
-from sitl import common as C  # noqa: E402  (sets up LagrangeBench first)
+import jax
+from lagrangebench import Trainer
 
-import jax  # noqa: E402
-from lagrangebench import Trainer  # noqa: E402
-
-from sitl import generate  # noqa: E402
-from sitl import model as M  # noqa: E402
-from sitl import settings as S  # noqa: E402
+from sitl import generate
+from sitl import model as M
+from sitl import settings as S
+from sph.harness.cli import profile_main
 
 
 def trainer_configs(exp: S.Experiment, run_name: str):
@@ -99,15 +94,13 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     return record
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None)
+def options(ap):
     ap.add_argument("--model", required=True, choices=S.MODELS)
-    args = ap.parse_args(argv)
-    exp = S.load(args.profile)
-    train(exp, args.results or f"results/{args.profile}", args.model)
+
+
+def main(args):
+    train(S.load(args.profile), args.results, args.model)
 
 
 if __name__ == "__main__":
-    main()
+    profile_main(main, __doc__, options)

@@ -24,7 +24,7 @@ SETUP_HINT = "run `make setup-lb` (scripts/setup_lagrangebench.sh) to build it"
 
 
 def _load_lbcompat():
-    """Import <repo>/lbcompat.py without putting the repo root on sys.path."""
+    """Import <repo>/lbcompat.py without putting the repo root on the import path."""
     spec = importlib.util.spec_from_file_location("lbcompat", ROOT / "lbcompat.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

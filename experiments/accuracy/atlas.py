@@ -31,7 +31,7 @@ import pandas as pd  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import settings as S
 
 PROBLEMS = {  # problem -> (experiment of its records, error column, what the error is)

@@ -16,7 +16,7 @@ from sph.harness.configtools import ConfigError, to_mapping
 
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import settings as S
 
 

@@ -51,7 +51,7 @@ from sph.harness import io, record, tables
 from sph.kernels import make_kernel
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 BUCHNER = S.REFS / "dambreak_pressure_buchner_2002.csv"

@@ -27,7 +27,7 @@ from sph.harness import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import evaluate as E
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import evaluate as E
     import settings as S
 

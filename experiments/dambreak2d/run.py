@@ -24,7 +24,7 @@ from sph.cases import tank
 from sph.harness.configtools import to_mapping
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 

@@ -31,7 +31,7 @@ from sph.kernels import make_kernel
 from sph.state import FLUID, MOVING_WALL, WALL
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 REFS = S.ROOT / "validation_refs"

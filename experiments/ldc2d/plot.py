@@ -27,7 +27,7 @@ try:  # noqa: E402
     from . import analysis
     from . import run as R
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import analysis
     import run as R
     import settings as S

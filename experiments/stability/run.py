@@ -34,7 +34,7 @@ import pandas as pd
 try:
     from . import cases as C
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import cases as C
     import settings as S
 

@@ -20,7 +20,7 @@ from sph.harness import io, tables  # noqa: E402
 from sph.cases import tgv  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}

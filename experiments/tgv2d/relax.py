@@ -21,7 +21,7 @@ from sph.lattice import cartesian, jitter
 
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import settings as S
 
 

@@ -20,7 +20,7 @@ from sph.cases import tgv3d
 
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import settings as S
 
 

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from sph.harness import tables  # noqa: E402
 try:  # noqa: E402
     from . import analysis, settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import analysis
     import settings as S
 

@@ -29,7 +29,7 @@ from sph.harness.configtools import to_mapping
 
 try:
     from . import analysis, relax, settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import analysis
     import relax
     import settings as S

@@ -14,7 +14,7 @@ from sph.harness import cli
 
 try:
     from . import run as R, settings as S
-except ImportError:  # run as a script: its folder is on sys.path
+except ImportError:  # run as a script: its folder comes first on the import path
     import run as R
     import settings as S
 

@@ -22,7 +22,7 @@ import pandas as pd  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 

@@ -41,7 +41,7 @@ from sph.scene import Scene
 from sph.state import FLUID
 try:
     from . import settings as S
-except ImportError:  # run as a script: its folder is on sys.path (a copied folder works unchanged)
+except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
     import settings as S
 
 
@@ -196,7 +196,7 @@ class ChannelProbe:
 
     Q_hot   heat per unit time (and unit depth) that the heated wall segment gives the fluid:
             sum_{i fluid} m_i c_p (dT_i/dt restricted to neighbours j on the hot segment), evaluated
-            with `sph.heat.temperature_rate` itself (masses of all other particles set to zero)
+            with the solver's own conduction term `sph.heat.Conduction` (masses of all other particles set to zero)
     Q_cold  the same for the walls at T_ref (negative: heat leaving the fluid)
     Nu_hot  Q_hot / (2 hot_half_width) * H / (kappa (T_hot - T_ref)); 1 = pure conduction across a
             linear profile
@@ -215,9 +215,8 @@ class ChannelProbe:
         fluid = jnp.asarray(self.fluid)
 
         def flux(state, nbrs, source):
-            pairs = solver.pairs_fn(state.r, nbrs)
-            rate = heat.temperature_rate(pairs, state.rho, state.T, jnp.where(source, state.mass, 0.0),
-                                         mat.kappa, mat.c_p)
+            rate = solver.sweep_fn(heat.Conduction(mat.kappa, mat.c_p), nbrs, r=state.r, rho=state.rho, T=state.T,
+                                   mass=jnp.where(source, state.mass, 0.0)).dTdt
             return jnp.sum(jnp.where(fluid, state.mass * mat.c_p * rate, 0.0))
 
         self._flux = jax.jit(flux)

@@ -14,6 +14,7 @@ import ast
 import functools
 import hashlib
 import json
+import sys
 from pathlib import Path
 from typing import Iterable, Optional
 
@@ -114,12 +115,33 @@ def code_fingerprint(files: Iterable = (), modules: Iterable[str] = ()) -> str:
     return _code_fingerprint(str(SPH_ROOT), tuple(str(Path(f).resolve()) for f in files), tuple(modules))
 
 
-@functools.lru_cache(maxsize=None)
-def _code_fingerprint(sph_root: str, files: tuple, modules: tuple) -> str:
-    files = [Path(f) for f in files]
+def code_modules(files: Iterable = (), modules: Iterable[str] = ()) -> list:
+    """The sph modules behind a run (what `code_fingerprint` hashes besides `files`): the closure of
+    the solver's modules, `modules` and the sph modules that `files` import."""
     start = set(SOLVER_MODULES) | set(modules)
     for f in files:  # the sph modules the experiment's own scripts use (its case module, ...)
-        start |= _imports("__main__", f)
-    parts = {m: code_digest(_module_path(m)) for m in sph_closure(start)}
-    parts.update({f.name: code_digest(f) for f in files})
+        start |= _imports("__main__", Path(f))
+    return sph_closure(start)
+
+
+@functools.lru_cache(maxsize=None)
+def _code_fingerprint(sph_root: str, files: tuple, modules: tuple) -> str:
+    parts = {m: code_digest(_module_path(m)) for m in code_modules(files, modules)}
+    parts.update({Path(f).name: code_digest(f) for f in files})
     return digest(parts)
+
+
+def main(argv=None) -> int:
+    """`python sph/harness/keys.py FILE ...`: the files `code_fingerprint([FILE, ...])` hashes, one a
+    line (the FILEs, then the sph modules), e.g. as make prerequisites. Reads no sph module (stdlib only)."""
+    files = list(sys.argv[1:] if argv is None else argv)
+    root = SPH_ROOT.parent
+    paths = [Path(f) for f in files] + [_module_path(m) for m in code_modules(files)]
+    for p in paths:
+        p = Path(p).resolve()
+        print(p.relative_to(root) if p.is_relative_to(root) else p)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
