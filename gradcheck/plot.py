@@ -13,9 +13,7 @@ direction. Reads grad_growth.csv; writes results/<profile>/fig1/{grad_norm_vs_st
 
     python gradcheck/plot.py --profile smoke [--results results/smoke] [--what fig1|growth]
 """
-import argparse
 import shutil
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -142,18 +140,17 @@ def plot_growth(exp: "S.Experiment", results) -> Path:
     return out / "grad_norm_vs_steps.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--what", choices=("fig1", "growth"), default="fig1")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
-    results = args.results or f"results/{args.profile}"
+    results = args.results
     (plot_fig1 if args.what == "fig1" else plot_growth)(exp, results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -22,9 +22,7 @@ Writes results/<profile>/gradcheck/{<case>_<dtype>.npz, metrics.csv, sweep.csv, 
 
     python gradcheck/run.py --profile smoke [--results results/smoke] [--part check|growth|all]
 """
-import argparse
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -327,15 +325,14 @@ def growth_all(exp: "S.Experiment", results, force: bool = False) -> pd.DataFram
     return table
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--part", choices=("check", "growth", "all"), default="check")
     ap.add_argument("--force", action="store_true", help="recompute even if the inputs are unchanged")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
-    results = args.results or f"results/{args.profile}"
+    results = args.results
     if args.part in ("check", "all"):
         check_all(exp, results, args.force)
     if args.part in ("growth", "all"):
@@ -343,6 +340,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -7,9 +7,7 @@ results/<profile>/fig2/fig2.{png,pdf} and copies of metrics.csv and summary.csv 
 
     python inverse/plot.py --profile smoke [--results results/smoke]
 """
-import argparse
 import shutil
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -95,15 +93,11 @@ def plot(exp: "S.Experiment", results) -> Path:
     return out / "fig2.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    plot(S.load(args.profile), args.results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

@@ -32,12 +32,9 @@ Writes results/<profile>/inverse/
 
     python inverse/run.py --profile smoke [--results results/smoke]
 """
-import argparse
 import json
-import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 import jax
@@ -292,15 +289,11 @@ def summarize(exp: S.Experiment, table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    run_all(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    run_all(S.load(args.profile), args.results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

@@ -16,7 +16,6 @@ results/<profile>/accuracy/:
 
     python experiments/accuracy/atlas.py --profile smoke [--results results/smoke]
 """
-import argparse
 import json
 from pathlib import Path
 
@@ -258,15 +257,11 @@ def build(atlas: "S.Atlas", results) -> Path:
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    build(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    build(S.load(args.profile), args.results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

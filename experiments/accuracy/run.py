@@ -6,7 +6,6 @@ records their own experiments wrote.
 
     python experiments/accuracy/run.py --profile smoke [--results results/smoke]
 """
-import argparse
 import time
 
 from experiments.tgv2d import run as tgv_run
@@ -53,16 +52,15 @@ def run_sweep(atlas: "S.Atlas", results, progress: bool = True) -> int:
     return n
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
-    run_sweep(S.load(args.profile), args.results or f"results/{args.profile}", not args.no_progress)
+
+
+def main(args):
+    run_sweep(S.load(args.profile), args.results, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -1,12 +1,11 @@
 """Settings of the accuracy-cost atlas: config.yaml -> frozen, validated dataclasses, and paths."""
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
 from sph.harness.configtools import load_profile, require
-from sph.config import Numerics
 from sph.kernels import KERNELS
 from sph.precision import DTYPES
 

@@ -38,10 +38,7 @@ and one row per run into results/<profile>/dambreak2d/metrics.csv:
 
     python experiments/dambreak2d/evaluate.py --profile smoke [--results results/smoke]
 """
-import argparse
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -239,15 +236,11 @@ def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
     return table
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    evaluate_all(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    evaluate_all(S.load(args.profile), args.results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

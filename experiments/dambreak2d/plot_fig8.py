@@ -9,9 +9,7 @@ only an animation of the Fig. 8 column's pressure in the figure's colour range (
 
     python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--gif fig8.gif]
 """
-import argparse
 import shutil
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -145,13 +143,12 @@ def plot(exp: "S.Experiment", results) -> Path:
     return f8
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--gif", default=None, help="write only an animation of the Fig. 8 run to this file")
-    args = ap.parse_args(argv)
-    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+
+
+def main(args):
+    exp, results = S.load(args.profile), args.results
     if args.gif:
         animate_fig8(exp, results, args.gif)
     else:
@@ -159,6 +156,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -13,7 +13,6 @@ stopped part-way resumes from its checkpoint; a damaged or stale one is set asid
 
     python experiments/dambreak2d/run.py --profile smoke [--results results/smoke] [--only square]
 """
-import argparse
 import time
 
 import numpy as np
@@ -81,19 +80,18 @@ def run_all(exp: "S.Experiment", results, columns=None, progress: bool = True):
     print(f"dambreak2d: {n} runs in {time.perf_counter() - t0:.1f} s -> {S.out_dir(results)}", flush=True)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--only", nargs="*", default=None, help="column names to run (default: all)")
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     columns = cli.select("--only", args.only, [c.name for c in exp.columns])
-    run_all(exp, args.results or f"results/{args.profile}", columns, not args.no_progress)
+    run_all(exp, args.results, columns, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

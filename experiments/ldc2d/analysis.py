@@ -16,10 +16,8 @@ the lid, 0 at the bottom; v = 0 at the side walls), and over the 15 interior poi
 
     python experiments/ldc2d/analysis.py --profile smoke [--results results/smoke]   (re-evaluate)
 """
-import argparse
 import dataclasses
 import json
-import sys
 from pathlib import Path
 
 import h5py
@@ -234,13 +232,9 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     return row
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
+def main(args):
     exp = S.load(args.profile)
-    results = args.results or f"results/{args.profile}"
+    results = args.results
     from sph.harness import io
     for dx in exp.dx:
         for m in exp.methods:
@@ -254,6 +248,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

@@ -10,8 +10,6 @@ of one method's run of that figure (--method, default tvf; sph.harness.animate).
 
     python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke] [--gif fig6.gif]
 """
-import argparse
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -109,15 +107,14 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
     return out / f"{fig_name}.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def options(ap):
     ap.add_argument("--fig", choices=S.FIGURES, required=True)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
     ap.add_argument("--gif", default=None, help="write only an animation of one run of the figure to this file")
     ap.add_argument("--method", default="tvf", help="the method animated with --gif (default tvf)")
-    args = ap.parse_args(argv)
-    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+
+
+def main(args):
+    exp, results = S.load(args.profile), args.results
     if args.gif:
         names = [m.name for m in exp.methods]
         if args.method not in names:
@@ -128,6 +125,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -25,7 +25,6 @@ so a background run can be followed with `tail -f`.
     python experiments/ldc2d/run.py --profile smoke [--results results/smoke] [--fig fig6]
                                     [--only tvf] [--dx 0.05] [--no-progress]
 """
-import argparse
 import dataclasses
 import time
 
@@ -141,29 +140,28 @@ def run_all(exp: "S.Experiment", results, methods=None, dxs=None, progress: bool
     return rows
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--fig", choices=S.FIGURES, default=None, help="only the runs of this figure (its dx)")
     ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
     ap.add_argument("--dx", nargs="*", type=float, default=None, help="spacings to run (default: all)")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--log-every", type=int, default=None,
                     help="print a progress line every N frames (default: 10 with --no-progress, else off)")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     methods = cli.select("--only", args.only, [m.name for m in exp.methods])
     dxs = cli.select("--dx", args.dx, list(exp.dx))
     if args.fig:
         if args.fig not in exp.figures:
-            ap.error(f"--fig: profile {args.profile!r} has no {args.fig} (figures: {list(exp.figures)})")
+            raise sph.ConfigError(f"--fig: profile {args.profile!r} has no {args.fig} (figures: {list(exp.figures)})")
         dxs = [float(exp.figures[args.fig])]
     log_every = args.log_every if args.log_every is not None else (10 if args.no_progress else 0)
-    run_all(exp, args.results or f"results/{args.profile}", methods, dxs, not args.no_progress, log_every)
+    run_all(exp, args.results, methods, dxs, not args.no_progress, log_every)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

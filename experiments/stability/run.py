@@ -22,14 +22,13 @@ so editing `criteria` or `expected` in config.yaml, or this file, re-evaluates w
 
     python experiments/stability/run.py --profile smoke [--results results/smoke] [--only ldc_tvf heat_sine]
 """
-import argparse
 import json
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from sph.errors import ConfigError
 
 try:
     from . import cases as C
@@ -255,26 +254,25 @@ def run_suite(suite: "S.Suite", results, only=None, progress: bool = True, force
     return table
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--only", nargs="*", default=None, help="case names to run (default: all)")
     ap.add_argument("--force", action="store_true", help="re-run cases even if their result is current")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--ignore-code-changes", action="store_true",
                     help="reuse a case's result made from the same settings even if sph/ or the scripts changed")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     suite = S.load(args.profile)
     if args.only:
         bad = [n for n in args.only if n not in suite.names()]
         if bad:
-            ap.error(f"--only: {bad[0]!r} is not one of {suite.names()}")
-    run_suite(suite, args.results or f"results/{args.profile}", args.only, not args.no_progress, args.force,
+            raise ConfigError(f"--only: {bad[0]!r} is not one of {suite.names()}")
+    run_suite(suite, args.results, args.only, not args.no_progress, args.force,
               args.ignore_code_changes)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -6,8 +6,6 @@ with --gif PATH only an animation of the same run (sph.harness.animate).
 
     python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke] [--gif fig4.gif]
 """
-import argparse
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -55,14 +53,13 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
     return out / "fig4.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--out", default=None, help="figure folder (default <results>/fig4)")
     ap.add_argument("--gif", default=None, help="write only an animation of the Fig. 4 run to this file")
-    args = ap.parse_args(argv)
-    exp, results = S.load(args.profile), args.results or f"results/{args.profile}"
+
+
+def main(args):
+    exp, results = S.load(args.profile), args.results
     if args.gif:
         animate.render(fig4_traj(exp, results), args.gif)
     else:
@@ -70,6 +67,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

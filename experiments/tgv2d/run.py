@@ -16,7 +16,6 @@ is the experiment's name: a copy of this folder under another name is an experim
 
     python experiments/tgv2d/run.py --profile smoke [--results results/smoke] [--only tvf] [--dx 0.05]
 """
-import argparse
 import time
 
 import numpy as np
@@ -115,22 +114,21 @@ def run_all(exp: "S.Experiment", results, methods=None, dxs=None, progress: bool
     return pd.DataFrame(rows)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
     ap.add_argument("--dx", nargs="*", type=float, default=None,
                     help="run only these of the profile's spacings (default: all)")
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     methods = cli.select("--only", args.only, [m.name for m in exp.methods])
     dxs = cli.select("--dx", args.dx, list(exp.dx))
-    run_all(exp, args.results or f"results/{args.profile}", methods, dxs, not args.no_progress)
+    run_all(exp, args.results, methods, dxs, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -7,7 +7,6 @@ results/<profile>/fig9/fig9.{png,pdf} and results/<profile>/fig9/metrics.csv (a 
 
     python experiments/tgv3d/plot_fig9.py --profile smoke [--results results/smoke]
 """
-import argparse
 from pathlib import Path
 
 import matplotlib
@@ -66,16 +65,15 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
     return out / "fig9.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--out", default=None, help="figure folder (default <results>/fig9)")
-    args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}", args.out)
+
+
+def main(args):
+    plot(S.load(args.profile), args.results, args.out)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

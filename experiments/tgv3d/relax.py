@@ -8,7 +8,6 @@ fingerprint (relaxation settings, material, numerics, code) matches.
 
     python experiments/tgv3d/relax.py --profile smoke [--results results/smoke]
 """
-import argparse
 import dataclasses
 
 import numpy as np
@@ -47,19 +46,18 @@ def initial_positions(exp: "S.Experiment", n: int, results, progress: bool = Tru
     return relaxed_positions(exp, n, results, progress) if exp.start == "relaxed" else None
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
-    results = args.results or f"results/{args.profile}"
+    results = args.results
     for n in exp.n_side:
         relaxed_positions(exp, n, results, progress=not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -17,7 +17,6 @@ of the fingerprint: editing a metric re-evaluates, never re-runs).
 
     python experiments/tgv3d/run.py --profile smoke [--results results/smoke] [--only tvf] [--n 12]
 """
-import argparse
 import time
 
 import pandas as pd
@@ -97,22 +96,21 @@ def run_all(exp: "S.Experiment", results, methods=None, ns=None, progress: bool 
     return pd.DataFrame(rows)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
     ap.add_argument("--n", nargs="*", type=int, default=None,
                     help="run only these of the profile's resolutions, particles per side (default: all)")
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     methods = cli.select("--only", args.only, [m.name for m in exp.methods])
     ns = cli.select("--n", args.n, list(exp.n_side))
-    run_all(exp, args.results or f"results/{args.profile}", methods, ns, not args.no_progress)
+    run_all(exp, args.results, methods, ns, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -7,7 +7,6 @@ count, which the relaxed start changes by a few per cent at most.
 
     python experiments/tgv3d/step_cost.py --profile paper --n 20 32 [--steps 40]
 """
-import argparse
 
 from sph import simulate
 from sph.harness import cli
@@ -30,13 +29,13 @@ def measure(exp: "S.Experiment", method: "S.Method", n: int, steps: int) -> dict
             "full_run_h": n_full * res.ms_per_step / 3.6e6}
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
+def options(ap):
     ap.add_argument("--n", nargs="*", type=int, default=None, help="resolutions of the profile (default: all)")
     ap.add_argument("--only", nargs="*", default=None, help="method names (default: all)")
     ap.add_argument("--steps", type=int, default=40, help="steps timed per run (after compilation)")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     ns = cli.select("--n", args.n, list(exp.n_side)) or list(exp.n_side)
     methods = cli.select("--only", args.only, [m.name for m in exp.methods])
@@ -51,6 +50,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

@@ -9,8 +9,6 @@ metrics row of this dx) and series.csv (a copy of the per-frame diagnostics).
 
     python experiments/thermal/plot_fig10.py --profile smoke [--results results/smoke]
 """
-import argparse
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -102,15 +100,11 @@ def plot(exp: "S.Experiment", results) -> Path:
     return out / "fig10.png"
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    plot(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    plot(S.load(args.profile), args.results)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

@@ -9,7 +9,6 @@ profile's spacings). Exits with status 1 (after writing) when the `report_dx` ru
 
     python experiments/thermal/plot_heat_validation.py --profile smoke [--results results/smoke]
 """
-import argparse
 import sys
 from pathlib import Path
 
@@ -74,17 +73,13 @@ def plot(exp: "S.Experiment", results) -> dict:
     return row
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
-    args = ap.parse_args(argv)
-    row = plot(S.load(args.profile), args.results or f"results/{args.profile}")
+def main(args):
+    row = plot(S.load(args.profile), args.results)
     if not row["meets_target"]:
         sys.exit(1)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__)

@@ -19,9 +19,7 @@ The channel run checks the discrete maximum principle: every temperature stays w
 
     python experiments/thermal/run.py --profile smoke [--results results/smoke] [--task sine|channel|all]
 """
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -355,20 +353,19 @@ def run_all(exp: "S.Experiment", results, task: str = "all", dxs=None, progress:
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
+def options(ap):
     ap.add_argument("--task", choices=("sine", "channel", "all"), default="all")
     ap.add_argument("--dx", nargs="*", type=float, default=None, help="sine: spacings to run (default: all)")
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(argv)
+
+
+def main(args):
     exp = S.load(args.profile)
     dxs = cli.select("--dx", args.dx, list(exp.diffusion.dx))
-    run_all(exp, args.results or f"results/{args.profile}", args.task, dxs, not args.no_progress)
+    run_all(exp, args.results, args.task, dxs, not args.no_progress)
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from sph.harness.cli import profile_main
 
-    main_guard(main)
+    profile_main(main, __doc__, options)

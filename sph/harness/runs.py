@@ -15,7 +15,6 @@ overwritten). A run folder holds
 run's metrics row). The run record and the metrics tables are `sph.harness.record` and
 `sph.harness.tables`.
 """
-import json
 import resource
 import sys
 from dataclasses import dataclass, field
@@ -26,8 +25,8 @@ import numpy as np
 
 from .. import simulate
 from . import io, xdmf
-from .io import read_metadata
 from .configtools import to_mapping
+from .io import read_metadata
 
 
 def write_every_for(n_steps: int, frames: Optional[int] = None, frame_dt: Optional[float] = None,
