@@ -333,6 +333,10 @@ def main():
         else:
             print(format_table(rows, "shared jax (both codes in one process)"))
         return
+    for skip, python, how in ((args.no_own, args.peer_python, "bash scripts/setup_peer.sh"),
+                              (args.no_shared, args.lb_python, "make setup-lb")):
+        if not skip and not os.access(python, os.X_OK):
+            sys.exit(f"{python} not found: build it with `{how}` (or skip its rows: --no-own / --no-shared)")
     os.makedirs(args.out, exist_ok=True)
     rows = []
     if not args.no_own:
