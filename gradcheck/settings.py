@@ -156,7 +156,8 @@ def fig_dir(results) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
-    """Hash of the solver sources (sph/**/*.py), settings.py and run.py."""
+    """Hash of the code behind a result: settings.py, run.py and the sph modules they and the solver
+    import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
     return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
 
 

@@ -1,6 +1,7 @@
 """The TGV sweep of the accuracy-cost atlas: every method x dx x dtype x kernel of the profile, each
-(kernel, dtype) as one experiments/tgv2d experiment run with tgv2d's own code (cached, resumable:
-sph.harness.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
+(kernel, dtype) as one 2D Taylor-Green study (sph.harness.tgv2d / tgv2d_runs, the code experiments/tgv2d
+runs too; its base profile read from experiments/tgv2d/config.yaml) with its own runs (cached,
+resumable: sph.harness.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
 the other problems of the atlas (cavity, dam break, heat) are not run here: atlas.py reads the run
 records their own experiments wrote.
 
@@ -8,10 +9,9 @@ records their own experiments wrote.
 """
 import time
 
-from experiments.tgv2d import run as tgv_run
-from experiments.tgv2d import settings as tgv_settings
-
+from sph.harness import tgv2d, tgv2d_runs
 from sph.harness.configtools import ConfigError, to_mapping
+from sph.harness.study import Study
 
 try:
     from . import settings as S
@@ -19,11 +19,15 @@ except ImportError:  # run as a script: its folder comes first on the import pat
     import settings as S
 
 
-def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> "tgv_settings.Experiment":
-    """The tgv2d experiment of one (kernel entry, dtype) of the sweep, validated as tgv2d's own config
-    (a kernel entry "name@<factor>" also sets numerics.h_factor)."""
+STUDY = Study("tgv2d", S.HERE)
+"""The sweep's runs: a 2D Taylor-Green study named tgv2d (what the atlas gathers), keyed on this folder's code."""
+
+
+def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> tgv2d.Experiment:
+    """The 2D Taylor-Green experiment of one (kernel entry, dtype) of the sweep, validated as tgv2d's own
+    config (a kernel entry "name@<factor>" also sets numerics.h_factor)."""
     sw = atlas.tgv
-    base = tgv_settings.load(sw.base_profile)
+    base = tgv2d.load(S.TGV_CONFIG, sw.base_profile)
     names = [m.name for m in base.methods]
     for i, m in enumerate(sw.methods):
         if m not in names:
@@ -35,7 +39,7 @@ def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> "tgv_settings.E
     numerics = {"kernel": name, "dtype": dtype}
     if h_factor is not None:
         numerics["h_factor"] = h_factor
-    return tgv_settings.load(sw.base_profile, overrides={
+    return tgv2d.load(S.TGV_CONFIG, sw.base_profile, overrides={
         "numerics": numerics, "methods": methods, "dx": list(sw.dx),
         "t_end": sw.t_end, "frames": sw.frames, "eval_times": [sw.t_end / 2, sw.t_end]})
 
@@ -47,7 +51,7 @@ def run_sweep(atlas: "S.Atlas", results, progress: bool = True) -> int:
         for dtype in atlas.tgv.dtypes:
             exp = tgv_experiment(atlas, kernel, dtype)
             print(f"accuracy: TGV sweep, kernel {kernel}, {dtype}", flush=True)
-            n += len(tgv_run.run_all(exp, S.tgv_results(results, kernel, dtype), progress=progress))
+            n += len(tgv2d_runs.run_all(STUDY, exp, S.tgv_results(results, kernel, dtype), progress=progress))
     print(f"accuracy: {n} TGV runs in {time.perf_counter() - t0:.1f} s", flush=True)
     return n
 

@@ -170,7 +170,8 @@ def metrics_path(results) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash(*scripts: str) -> str:
-    """Hash of the solver sources (sph/**/*.py), settings.py and the named scripts of this folder."""
+    """Hash of the code behind a run: settings.py, the named scripts of this folder and the sph modules
+    they and the solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
     return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])
 
 

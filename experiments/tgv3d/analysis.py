@@ -1,9 +1,9 @@
 """Post-processing of the 3D Taylor-Green runs: E_kin(t) and -dE/dt(t) from the written frames, and
 their deviation from the JAX-Fluids reference (the metrics row of one run).
 
-Kept apart from run.py on purpose: the run fingerprint covers settings.py, relax.py, run.py and
-sph/, not this file, so changing a metric re-evaluates the stored trajectories without re-running
-them (the paper profile takes hours).
+Kept apart from run.py on purpose: the run fingerprint covers settings.py, run.py and the sph
+modules they and the solver import, not this file, so changing a metric re-evaluates the stored
+trajectories without re-running them (the paper profile takes hours).
 
   E_kin(t)   = (1/2) sum_i m_i |v_i|^2 / (rho_ref (2 pi)^3)   the writer's e_kin series (sph.diagnostics,
                transport velocity v) per unit volume and density, the reference's normalisation

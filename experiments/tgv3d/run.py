@@ -17,14 +17,13 @@ of the fingerprint: editing a metric re-evaluates, never re-runs).
 
     python experiments/tgv3d/run.py --profile smoke [--results results/smoke] [--only tvf] [--n 12]
 """
-import time
-
 import pandas as pd
 
 import sph
-from sph.harness import cli, record, runs, tables
 from sph.cases import tgv3d
+from sph.harness import cli, record, runs, tables
 from sph.harness.configtools import to_mapping
+from sph.harness.study import run_spec, sweep
 
 try:
     from . import analysis, relax, settings as S
@@ -40,12 +39,9 @@ def build(exp: "S.Experiment", method: "S.Method", n: int, r) -> sph.Solver:
 
 def spec(exp: "S.Experiment", method: "S.Method", n: int, results) -> runs.RunSpec:
     """What identifies the run of `method` at n^3 particles and how it is written."""
-    return runs.RunSpec(folder=S.run_dir(results, method.name, n), case=exp.case, method=method.name,
-                        fingerprint=S.run_fingerprint(exp, method, n), t_end=exp.t_end, frames=exp.frames,
-                        keep=exp.keep, connectivity_radius_factor=exp.connectivity_radius_factor,
-                        metadata={"re": exp.re, "n_side": n, "start": exp.start,
-                                  "relaxation": to_mapping(exp.relaxation) if exp.start == "relaxed" else None},
-                        u_limit=exp.numerics.c_ref_factor * exp.material.u_ref)
+    return run_spec(S.STUDY, exp, method, S.n_tag(n), results, S.run_fingerprint(exp, method, n),
+                    {"re": exp.re, "n_side": n, "start": exp.start,
+                     "relaxation": to_mapping(exp.relaxation) if exp.start == "relaxed" else None})
 
 
 def run_one(exp: "S.Experiment", method: "S.Method", n: int, results, progress: bool = True,
@@ -86,14 +82,8 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
 
 def run_all(exp: "S.Experiment", results, methods=None, ns=None, progress: bool = True) -> pd.DataFrame:
     """Every (resolution, method) of the profile (optionally a subset); returns the metrics rows."""
-    t0 = time.perf_counter()
-    rows = []
-    for n in exp.n_side if ns is None else ns:
-        for m in exp.methods:
-            if methods is None or m.name in methods:
-                rows.append(run_one(exp, m, n, results, progress))
-    print(f"{S.NAME}: {len(rows)} runs in {time.perf_counter() - t0:.1f} s -> {S.metrics_path(results)}", flush=True)
-    return pd.DataFrame(rows)
+    return sweep(S.STUDY, results, exp.n_side if ns is None else ns, exp.methods,
+                 lambda m, n: run_one(exp, m, n, results, progress), only=methods)
 
 
 def options(ap):

@@ -1,5 +1,7 @@
 """Settings of the 3D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
-the reference data, and the fingerprints that decide whether a cached result still matches its inputs."""
+the reference data, and the fingerprints that decide whether a cached result still matches its inputs.
+What it shares with the 2D study (methods, paths, cache keys, relaxed starts, runs) is
+sph.harness.study's."""
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -9,7 +11,8 @@ import numpy as np
 import sph
 from sph.cases import tgv3d
 from sph.harness.configtools import ConfigError, load_profile, require, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import digest
+from sph.harness.study import Method, Study, check_methods, check_output
 from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
@@ -17,18 +20,10 @@ ROOT = HERE.parents[1]
 NAME = HERE.name
 """The experiment's name is its folder's: results go to results/<profile>/<NAME>."""
 CONFIG = HERE / "config.yaml"
-KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
+STUDY = Study(NAME, HERE)
 STARTS = ("relaxed", "lattice")
 MIN_N_SIDE = 6
 """The periodic side 2 pi must be at least twice the quintic support 3 dx (sph.solver.check_resolution)."""
-
-
-@dataclass(frozen=True)
-class Method:
-    """A named solver variant: the effects its scene declares."""
-
-    name: str
-    effects: sph.Effects = field(default_factory=sph.Effects)
 
 
 @dataclass(frozen=True)
@@ -75,10 +70,7 @@ class Experiment:
 
     def __post_init__(self):
         require_finite(self)
-        require(len(self.methods) > 0, "methods", "needs at least one method")
-        names = [m.name for m in self.methods]
-        for i, n in enumerate(names):
-            require(names.index(n) == i, f"methods[{i}].name", f"{n!r} appears twice")
+        check_methods(self.methods)
         require(len(self.n_side) > 0, "n_side", "needs at least one resolution (particles per side)")
         for i, n in enumerate(self.n_side):
             require(n >= MIN_N_SIDE, f"n_side[{i}]",
@@ -86,10 +78,7 @@ class Experiment:
             require(self.n_side.index(n) == i, f"n_side[{i}]", f"{n} appears twice")
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
         require(self.frames >= 4, "frames", f"must be >= 4 (dE/dt by central differences), got {self.frames}")
-        require(self.connectivity_radius_factor > 0, "connectivity_radius_factor",
-                f"must be positive, got {self.connectivity_radius_factor}")
-        for i, k in enumerate(self.keep):
-            require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+        check_output(self)
         require(self.start in STARTS, "start", f"{self.start!r} is not one of {list(STARTS)}")
         require(self.material.eta > 0, "material.eta",
                 f"must be positive: Re = rho_ref u_ref / eta needs a viscosity, got {self.material.eta}")
@@ -153,35 +142,38 @@ def n_tag(n: int) -> str:
 
 def out_dir(results) -> Path:
     """results/<profile>/<NAME> (tgv3d for this folder)."""
-    return Path(results) / NAME
+    return STUDY.out_dir(results)
 
 
 def run_dir(results, method: str, n: int) -> Path:
-    return out_dir(results) / f"{method}_{n_tag(n)}"
+    return STUDY.run_dir(results, method, n_tag(n))
 
 
 def relaxed_path(results, n: int) -> Path:
-    return out_dir(results) / f"relaxed_{n_tag(n)}.npy"
+    return STUDY.relaxed_path(results, n_tag(n))
 
 
 def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
+    return STUDY.metrics_path(results)
 
 
 # -- fingerprints ---------------------------------------------------------------------------------
-def code_hash(*scripts: str) -> str:
-    """Hash of the solver's code (sph.harness.keys.code_fingerprint), settings.py and the named scripts of
-    this folder (with the sph modules they import, e.g. sph.cases.tgv3d and sph.relax)."""
-    return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])
+RELAX_MODULES = ("sph.harness.study", "sph.cases.tgv3d")
+"""The code of a relaxed start besides the solver's (the study's relaxation, the 3D TGV scene)."""
 
 
 def relax_fingerprint(exp: Experiment, n: int) -> str:
+    """The relaxed start of n^3 particles: its settings and the code that relaxes (the solver's, the
+    study's relaxation and the scene, settings.py), without docstrings or comments."""
     return digest({"n_side": n, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
-                   "relaxation": to_mapping(exp.relaxation), "code": code_hash("relax.py")})
+                   "relaxation": to_mapping(exp.relaxation), "code": STUDY.code_hash(modules=RELAX_MODULES)})
 
 
 def run_fingerprint(exp: Experiment, method: Method, n: int) -> str:
+    """The run of `method` at n^3 particles: its settings, its start and the code of the solver, of
+    settings.py and run.py and of the sph modules they import (analysis.py, which only evaluates, is
+    not part of it)."""
     start = relax_fingerprint(exp, n) if exp.start == "relaxed" else "lattice"
     return digest({"case": exp.case, "n_side": n, "method": to_mapping(method), "material": to_mapping(exp.material),
                    "numerics": to_mapping(exp.numerics), "t_end": exp.t_end, "frames": exp.frames,
-                   "keep": list(exp.keep), "start": start, "code": code_hash("run.py")})
+                   "keep": list(exp.keep), "start": start, "code": STUDY.code_hash("run.py")})

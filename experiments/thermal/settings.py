@@ -183,7 +183,8 @@ def metrics_path(results) -> Path:
 
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
-    """Hash of the solver sources (sph/**/*.py) and of this folder's settings.py and run.py."""
+    """Hash of the code behind a run: this folder's settings.py and run.py and the sph modules they and
+    the solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
     return code_fingerprint([HERE / n for n in ("settings.py", "run.py")])
 
 

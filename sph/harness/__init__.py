@@ -10,7 +10,11 @@
   cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
   stamp.py         make stamps that change only when a run step changed its outputs
   xla_cpu.py       XLA's CPU flags for the pair sums, set by the entry points
+  study.py         a study's methods, paths, cache keys, relaxed periodic starts and sweep (TGV 2D / 3D)
+  tgv2d.py         the 2D Taylor-Green study's settings and fingerprints; tgv2d_runs.py its runs and
+                   metrics (experiments/tgv2d and the accuracy atlas's TGV sweep run them)
 
 Imports go from here to the core only (`sph.errors`, `sph.simulate`, ...). Which of these modules can
-change a run's numbers, and so enter its cache key, is `keys.NUMBER_NEUTRAL`'s complement.
+change a run's numbers, and so enter its cache key, is `keys.NUMBER_NEUTRAL`'s complement (the study
+modules, which set up scenes and starts).
 """

@@ -1,0 +1,110 @@
+"""A study: named methods (the effects their scenes declare) run at each resolution of a profile.
+
+What the Taylor-Green studies share (experiments/tgv2d, experiments/tgv3d and the accuracy atlas's
+TGV sweep): the method list and its checks, where a study writes (`Study`: results/<profile>/<name>/
+<method>_<tag>/, relaxed starts and metrics.csv beside them), the code its cache keys cover, the
+relaxed start of a periodic box (a jittered lattice relaxed with `sph.relax`, cached), the cached
+run's spec and the sweep over (resolution, method). What a study measures stays with the study.
+"""
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, Optional
+
+import numpy as np
+import pandas as pd
+
+from .. import relax as core_relax
+from ..config import Effects
+from ..errors import require
+from ..lattice import cartesian, jitter
+from . import runs
+from .keys import code_fingerprint
+
+KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
+"""Per-frame fields a study may keep besides position (sph.harness.io.FIELDS)."""
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named solver variant: the effects its scene declares."""
+
+    name: str
+    effects: Effects = field(default_factory=Effects)
+
+
+def check_methods(methods) -> list:
+    """The method names, each checked to be unique (at least one method)."""
+    require(len(methods) > 0, "methods", "needs at least one method")
+    names = [m.name for m in methods]
+    for i, n in enumerate(names):
+        require(names.index(n) == i, f"methods[{i}].name", f"{n!r} appears twice")
+    return names
+
+
+def check_output(exp) -> None:
+    """The output settings every study has: `connectivity_radius_factor` and the kept fields."""
+    require(exp.connectivity_radius_factor > 0, "connectivity_radius_factor",
+            f"must be positive, got {exp.connectivity_radius_factor}")
+    for i, k in enumerate(exp.keep):
+        require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
+
+
+@dataclass(frozen=True)
+class Study:
+    """Where a study writes and which of its own files its cache keys cover.
+
+    name    results/<profile>/<name> (an experiment's folder name: a copied folder is a study of its own)
+    folder  the folder of the study's own scripts (settings.py, run.py, ...), hashed into its keys
+    """
+
+    name: str
+    folder: Path
+
+    def out_dir(self, results) -> Path:
+        return Path(results) / self.name
+
+    def run_dir(self, results, method: str, tag: str) -> Path:
+        return self.out_dir(results) / f"{method}_{tag}"
+
+    def relaxed_path(self, results, tag: str) -> Path:
+        return self.out_dir(results) / f"relaxed_{tag}.npy"
+
+    def metrics_path(self, results) -> Path:
+        return self.out_dir(results) / "metrics.csv"
+
+    def code_hash(self, *scripts: str, modules: Iterable[str] = ()) -> str:
+        """Hash of the solver's code, settings.py and the named scripts of the study's folder, with
+        the sph modules they import (sph.harness.keys.code_fingerprint) and `modules`."""
+        return code_fingerprint([Path(self.folder) / n for n in ("settings.py", *scripts)], tuple(modules))
+
+
+def relax_periodic(scene_fn: Callable, box: tuple, dx: float, material, numerics, relaxation,
+                   progress: bool = True, desc: str = "relax"):
+    """Relax the lattice of spacing `dx` filling the periodic `box`, jittered by Gaussian noise (std
+    relaxation.noise_factor * dx, relaxation.seed), at rest with TVF (sph.relax); `scene_fn(dx,
+    material, effects, r=r)` builds the case's scene. Returns (positions, info)."""
+    r = jitter(cartesian([0.0] * len(box), list(box), dx), relaxation.noise_factor * dx, relaxation.seed, box=box)
+    r = np.where(r >= np.asarray(box), 0.0, r)  # np.mod can round a tiny negative up to exactly the box side
+    scene = scene_fn(dx, material, Effects(tvf=True), r=r)
+    return core_relax.relax(scene, numerics, relaxation, progress, desc=desc)
+
+
+def run_spec(study: Study, exp, method: Method, tag: str, results, fingerprint: str, metadata: dict) -> runs.RunSpec:
+    """The cached run of `method` at the resolution `tag` of experiment `exp` (its case, t_end, frames,
+    keep, connectivity_radius_factor; the blow-up limit c_ref_factor * u_ref)."""
+    return runs.RunSpec(folder=study.run_dir(results, method.name, tag), case=exp.case, method=method.name,
+                        fingerprint=fingerprint, t_end=exp.t_end, frames=exp.frames, keep=exp.keep,
+                        connectivity_radius_factor=exp.connectivity_radius_factor, metadata=metadata,
+                        u_limit=exp.numerics.c_ref_factor * exp.material.u_ref)
+
+
+def sweep(study: Study, results, resolutions, methods, run_one: Callable,
+          only: Optional[list] = None) -> pd.DataFrame:
+    """`run_one(method, resolution)` -> metrics row for every resolution and method (or the methods
+    named in `only`); one summary line; the rows as a table."""
+    t0 = time.perf_counter()
+    rows = [run_one(m, res) for res in resolutions for m in methods if only is None or m.name in only]
+    print(f"{study.name}: {len(rows)} runs in {time.perf_counter() - t0:.1f} s -> {study.metrics_path(results)}",
+          flush=True)
+    return pd.DataFrame(rows)
