@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
+from .rates import Rates
+
 
 @dataclass(frozen=True)
 class ConstantForce:
@@ -45,3 +47,11 @@ class ReversePoiseuilleForce:
     @property
     def g_max(self) -> float:
         return abs(float(self.g))
+
+
+@dataclass(frozen=True)
+class BodyForce:
+    """Force-pass term: the body force g at particle i (`i.g`), added to du/dt."""
+
+    def __call__(self, pp, i, j):
+        return Rates(dudt=i.g)

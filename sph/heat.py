@@ -11,7 +11,8 @@ the temperature are handled by the solver.
 from dataclasses import dataclass
 from typing import Optional
 
-import jax.numpy as jnp
+from .pairs import sum_j
+from .rates import Rates
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,18 @@ class TemperatureZone:
         return (r[:, self.axis] >= self.lo) & (r[:, self.axis] < self.hi)
 
 
-def temperature_rate(pairs, rho, T, mass, kappa: float, c_p: float):
-    """dT/dt of every particle (N,)."""
-    coef = pairs.gather(mass) / (rho[:, None] * pairs.gather(rho)) * pairs.f
-    return (2.0 * kappa / c_p) * jnp.sum(coef * (T[:, None] - pairs.gather(T)), axis=1)
+def temperature_rate(pp, i, j, kappa: float, c_p: float):
+    """dT/dt of every particle of the block (B, 1)."""
+    coef = j.mass / (i.rho * j.rho) * pp.f
+    return (2.0 * kappa / c_p) * sum_j(coef * (i.T - j.T))
+
+
+@dataclass(frozen=True)
+class Conduction:
+    """Force-pass term: heat conduction (Cleary 1998) into dT/dt."""
+
+    kappa: float
+    c_p: float
+
+    def __call__(self, pp, i, j):
+        return Rates(dTdt=temperature_rate(pp, i, j, self.kappa, self.c_p))

@@ -12,76 +12,86 @@ Walls (Zhang 2017b, Sec. 3.3, one-sided Riemann problem): for a wall neighbour j
   U_R = 2 U_w - U_L  (U_w = u_w . e, the prescribed wall velocity),
   p_R = p_L + rho_L g_i . (r_j - r_i),   rho_R = EoS^-1(p_R).
 The viscous term uses the wall velocity u~ of the generalized wall condition (`sph.walls`).
-Pair vectors are component-major (dim, N, K), see `sph.pairs`.
+Particle i's fields are read from `i`, its neighbours' from `j` (`sph.views`); wall neighbours are
+those with `j.wall`, their normals `j.normal`, and `i.g` is the body force at i.
 """
 from dataclasses import dataclass
+from typing import Callable, Optional
 
-import jax
 import jax.numpy as jnp
 
-from .pairs import cdot
+from . import pvec
+from .pairs import sum_j
+from .pvec import dot
+from .rates import Rates
 
 
-@jax.tree_util.register_dataclass
-@dataclass(frozen=True)
-class WallPairs:
-    """Per-pair wall data for the one-sided Riemann problem.
-
-    is_wall  (N, K) bool, neighbour j is a wall particle
-    e        (dim, N, K) -n_j (direction from the fluid into the wall; unused where not a wall)
-    dp       (N, K) hydrostatic pressure increment rho_i g_i . (r_j - r_i)
-    """
-
-    is_wall: jax.Array
-    e: jax.Array
-    dp: jax.Array
-
-
-def wall_pairs(pairs, wall, normal, rho, g):
-    """WallPairs from the (N,) wall mask, (N, dim) normals and (N, dim) body force."""
-    dp = -rho[:, None] * cdot(pairs.own_vec(g), pairs.dr)
-    return WallPairs(is_wall=pairs.gather(wall), e=-pairs.gather_vec(normal), dp=dp)
-
-
-def _states(pairs, rho, p, u, walls, rho_of_p):
-    """Direction e, velocities and left/right states of every pair."""
-    e = -pairs.e
-    rho_j, p_j = pairs.gather(rho), pairs.gather(p)
-    if walls is not None:
-        e = jnp.where(walls.is_wall[None], walls.e, e)
-    u_i, u_j = pairs.own_vec(u), pairs.gather_vec(u)
-    u_l, u_r = cdot(u_i, e), cdot(u_j, e)
-    if walls is not None:
-        u_r = jnp.where(walls.is_wall, 2.0 * u_r - u_l, u_r)
-        p_wall = p[:, None] + walls.dp
-        p_j = jnp.where(walls.is_wall, p_wall, p_j)
-        rho_j = jnp.where(walls.is_wall, rho_of_p(p_wall), rho_j)
+def _states(pp, i, j, rho_of_p, walls: bool):
+    """Direction e, velocities and left/right states of every pair (one-sided problems at walls)."""
+    e = -pp.e
+    rho_j, p_j = j.rho, j.p
+    if walls:
+        e = pvec.where(j.wall, -j.normal, e)
+    u_i, u_j = i.u, j.u
+    u_l, u_r = dot(u_i, e), dot(u_j, e)
+    if walls:
+        u_r = jnp.where(j.wall, 2.0 * u_r - u_l, u_r)
+        p_wall = i.p + (-i.rho * dot(i.g, pp.dr))   # p_L + rho_L g_i . (r_j - r_i)
+        p_j = jnp.where(j.wall, p_wall, p_j)
+        rho_j = jnp.where(j.wall, rho_of_p(p_wall), rho_j)
     return e, u_i, u_j, u_l, u_r, rho_j, p_j
 
 
-def continuity(pairs, rho, p, u, mass, c_ref, walls=None, rho_of_p=None):
+def continuity(pp, i, j, c_ref, rho_of_p=None, walls: bool = False):
     """drho_i/dt = 2 rho_i sum_j (m_j/rho_j) (u_i - v*_ij) . grad_i W_ij   (eq. 8),
     v* = U* e + (u_avg - U_avg e)."""
-    e, u_i, u_j, u_l, u_r, rho_j, p_j = _states(pairs, rho, p, u, walls, rho_of_p)
-    rho_avg = 0.5 * (rho[:, None] + rho_j)
+    e, u_i, u_j, u_l, u_r, rho_j, p_j = _states(pp, i, j, rho_of_p, walls)
+    rho_avg = 0.5 * (i.rho + rho_j)
     u_avg_n = 0.5 * (u_l + u_r)
-    u_star = u_avg_n + 0.5 * (p[:, None] - p_j) / (rho_avg * c_ref)
+    u_star = u_avg_n + 0.5 * (i.p - p_j) / (rho_avg * c_ref)
     v_star = u_star * e + (0.5 * (u_i + u_j) - u_avg_n * e)
-    rel = cdot((u_i - v_star), pairs.grad_w)
-    return 2.0 * rho * jnp.sum(pairs.gather(mass) / rho_j * rel, axis=1)
+    rel = dot(u_i - v_star, pp.grad_w)
+    return 2.0 * i.rho * sum_j(j.mass / rho_j * rel)
 
 
-def acceleration(pairs, rho, p, u, mass, eta, c_ref, eta_limiter, u_visc=None, walls=None, rho_of_p=None):
+def acceleration(pp, i, j, eta, c_ref, eta_limiter, rho_of_p=None, walls: bool = False):
     """du_i/dt = -2 sum_j m_j P*/(rho_i rho_j) grad_i W_ij            (eq. 9)
                + 2 sum_j m_j eta/(rho_i rho_j) u_ij/r_ij dW/dr          (viscous term, Zhang 2019 eq. 6).
-    `eta_limiter` < 0 switches the limiter off (beta = c_ref). `u_visc` (default u) is the velocity
-    of the viscous term (u~ on wall particles)."""
-    _, u_i, u_j, u_l, u_r, rho_j, p_j = _states(pairs, rho, p, u, walls, rho_of_p)
-    rho_avg = 0.5 * (rho[:, None] + rho_j)
+    `eta_limiter` < 0 switches the limiter off (beta = c_ref). With walls the viscous term uses
+    `u_visc` (u~ on wall particles), the Riemann states u."""
+    _, u_i, u_j, u_l, u_r, rho_j, p_j = _states(pp, i, j, rho_of_p, walls)
+    rho_avg = 0.5 * (i.rho + rho_j)
     jump = u_l - u_r
     beta = c_ref if eta_limiter < 0 else jnp.minimum(eta_limiter * jnp.maximum(jump, 0.0), c_ref)
-    p_star = 0.5 * (p[:, None] + p_j) + 0.5 * rho_avg * beta * jump
-    coef = 2.0 * pairs.gather(mass) / (rho[:, None] * rho_j)
-    if u_visc is not None:
-        u_i, u_j = pairs.own_vec(u_visc), pairs.gather_vec(u_visc)
-    return pairs.sum_vec(-(coef * p_star) * pairs.grad_w + (coef * eta * pairs.f) * (u_i - u_j))
+    p_star = 0.5 * (i.p + p_j) + 0.5 * rho_avg * beta * jump
+    coef = 2.0 * j.mass / (i.rho * rho_j)
+    if walls:
+        u_i, u_j = i.u_visc, j.u_visc
+    return sum_j(-(coef * p_star) * pp.grad_w + (coef * eta * pp.f) * (u_i - u_j))
+
+
+@dataclass(frozen=True)
+class RiemannContinuity:
+    """Density-pass term: rho^{n+1} = rho^n + dt drho/dt of eq. 8 (one-sided at walls)."""
+
+    dt: float
+    c_ref: float
+    rho_of_p: Optional[Callable] = None
+    walls: bool = False
+
+    def __call__(self, pp, i, j):
+        return i.rho + self.dt * continuity(pp, i, j, self.c_ref, self.rho_of_p, self.walls)
+
+
+@dataclass(frozen=True)
+class RiemannMomentum:
+    """Force-pass term: Riemann pressure with the dissipation limiter and viscosity, eq. 9."""
+
+    eta: float
+    c_ref: float
+    eta_limiter: float
+    rho_of_p: Optional[Callable] = None
+    walls: bool = False
+
+    def __call__(self, pp, i, j):
+        return Rates(dudt=acceleration(pp, i, j, self.eta, self.c_ref, self.eta_limiter, self.rho_of_p, self.walls))

@@ -13,12 +13,17 @@ force evaluation each wall particle w takes its state from its fluid neighbours 
 with a_w = 0 (walls do not accelerate). u~_w enters only the viscous term and the TVF stress; the
 continuity equation sees the prescribed u_w. A wall particle with no fluid neighbour gets p_w = 0
 and u^_w = 0 (it does not act on any fluid particle either, by kernel symmetry).
-Pair vectors are component-major (dim, N, K), see `sph.pairs`.
+The wall pass (`WallExtrapolation`) evaluates these sums for every particle of a block, reading
+particle i from `i` and its neighbours from `j` (`sph.views`); the solver keeps the wall rows.
 """
 from dataclasses import dataclass
+from typing import Optional
 
 import jax
 import jax.numpy as jnp
+
+from .pairs import sum_j
+from .pvec import PVec, dot
 
 
 WEIGHT_FLOOR = 1e-6
@@ -28,28 +33,28 @@ WEIGHT_FLOOR = 1e-6
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class FluidWeights:
-    """Shepard weights of the fluid neighbours of every particle.
+    """Shepard weights of the fluid neighbours of every particle of a block.
 
-    w_f   (N, K) W_ij where j is a fluid particle, 0 otherwise
-    inv   (N,)   1 / sum_j w_f (0 where a particle has no fluid neighbour)
+    w_f   (B, K) W_ij where j is a fluid particle, 0 otherwise
+    inv   (B, 1) 1 / sum_j w_f (0 where a particle has no fluid neighbour)
     """
 
     w_f: jax.Array
     inv: jax.Array
 
 
-def fluid_weights(pairs, fluid, floor=0.0) -> FluidWeights:
-    """`fluid` is a (N,) 0/1 float array (1 for fluid particles).
+def fluid_weights(pp, j, floor=0.0) -> FluidWeights:
+    """Shepard weights from `j.fluid` (1.0 for fluid neighbours).
 
     Where the fluid weights sum to at most `floor`, the value of 1 / sum is kept but its derivative
-    is not propagated (the solver uses floor = WEIGHT_FLOOR * W(0)): a wall particle that only
-    touches the far tail of a fluid kernel has a sum of ~1e-30 in float32, and the derivative of
+    is not propagated (the solver uses floor = WEIGHT_FLOOR * W(0) in float32): a wall particle that
+    only touches the far tail of a fluid kernel has a sum of ~1e-30 in float32, and the derivative of
     1 / sum, -1 / sum^2, overflows to inf there, which turned the gradient of the whole rollout into
     NaN (inf * 0). Such a wall particle's own weight in any fluid sum is equally small, so the
     dropped term changes the fluid's gradients by less than the floor's relative size.
     """
-    w_f = pairs.w * pairs.gather(fluid)
-    total = jnp.sum(w_f, axis=1)
+    w_f = pp.w * j.fluid
+    total = sum_j(w_f)
     some, live = total > 0, total > floor
     # the same value everywhere; below the floor the derivative of 1 / total is not propagated (the
     # differentiated branch never sees a tiny total, so its derivative stays finite where masked)
@@ -58,25 +63,46 @@ def fluid_weights(pairs, fluid, floor=0.0) -> FluidWeights:
     return FluidWeights(w_f=w_f, inv=jnp.where(some, inv, 0.0))
 
 
-def extrapolate(pairs, fw: FluidWeights, x):
-    """Shepard average of a per-particle scalar over fluid neighbours (eq. 22): (N,) -> (N,)."""
-    return jnp.sum(fw.w_f * pairs.gather(x), axis=1) * fw.inv
+def extrapolate(fw: FluidWeights, x_j):
+    """Shepard average over fluid neighbours of a gathered scalar (B, K) or PVec (eq. 22)."""
+    return sum_j(fw.w_f * x_j) * fw.inv
 
 
-def extrapolate_vec(pairs, fw: FluidWeights, x):
-    """Shepard average of a per-particle vector over fluid neighbours: (N, dim) -> (N, dim)."""
-    return pairs.sum_vec(fw.w_f * pairs.gather_vec(x)) * fw.inv[:, None]
-
-
-def pressure(pairs, fw: FluidWeights, p, rho, g_w):
-    """Wall pressure of eq. 27 (for every particle; the caller keeps the wall rows). `g_w` (N, dim)
-    is the body force at each particle (a_w = 0)."""
-    hydro = pairs.sum_vec((fw.w_f * pairs.gather(rho)) * pairs.dr)  # sum_f rho_f r_wf W_wf
-    return (jnp.sum(fw.w_f * pairs.gather(p), axis=1) + jnp.sum(g_w * hydro, axis=1)) * fw.inv
+def pressure(pp, fw: FluidWeights, i, j):
+    """Wall pressure of eq. 27 (for every particle of the block; the caller keeps the wall rows),
+    with the body force `i.g` at the particle (a_w = 0)."""
+    hydro = sum_j((fw.w_f * j.rho) * pp.dr)  # sum_f rho_f r_wf W_wf
+    return (sum_j(fw.w_f * j.p) + dot(i.g, hydro)) * fw.inv
 
 
 def velocity(u_hat, u_w, normal=None):
-    """Wall velocity for the viscous term: no slip (normal None, eq. 23) or free slip (normals)."""
+    """Wall velocity for the viscous term: no slip (normal None, eq. 23) or free slip (normals);
+    per-particle (N, dim) arrays."""
     if normal is None:
         return 2.0 * u_w - u_hat
     return u_hat + 2.0 * normal * jnp.sum(normal * (u_w - u_hat), axis=1, keepdims=True)
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class WallValues:
+    """What the wall pass extrapolates from the fluid, per particle of the block: p (eq. 27),
+    u^ (eq. 22) and, with heat, T."""
+
+    p: jax.Array
+    u_hat: PVec
+    T: Optional[jax.Array] = None
+
+
+@dataclass(frozen=True)
+class WallExtrapolation:
+    """Wall-pass term: the Shepard extrapolations of the generalized wall condition (Adami 2012);
+    `floor` as in `fluid_weights`, `heat` extrapolates the temperature too."""
+
+    floor: float = 0.0
+    heat: bool = False
+
+    def __call__(self, pp, i, j):
+        fw = fluid_weights(pp, j, self.floor)
+        return WallValues(p=pressure(pp, fw, i, j), u_hat=extrapolate(fw, j.u),
+                          T=extrapolate(fw, j.T) if self.heat else None)

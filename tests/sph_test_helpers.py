@@ -10,7 +10,8 @@ import sph
 from sph.domain import Domain
 from sph.kernels import make_kernel
 from sph.lattice import cartesian, jitter
-from sph.pairs import pair_geometry
+from sph.pvec import PVec
+from sph.views import rows, sides, whole_list_pairs
 from sph.scene import Scene
 from sph.state import FLUID
 
@@ -55,9 +56,19 @@ def periodic_pairs(r, dx, kernel_name="quintic", h_factor=1.0, domain=UNIT_SQUAR
     """
     kernel = make_kernel(kernel_name, h_factor * dx, domain.dim)
     idx = brute_force_neighbors(r, kernel.cutoff, domain.box, domain.periodic)
-    pairs = jax.jit(lambda r, idx: pair_geometry(r, idx, domain, kernel.cutoff, kernel))(
+    pairs = jax.jit(lambda r, idx: whole_list_pairs(r, idx, domain, kernel.cutoff, kernel))(
         jnp.asarray(r, jnp.float64), idx)
     return kernel, pairs
+
+
+def per_particle(fn, pairs, **fields):
+    """fn(pairs, i, j) over the whole list (`sph.views.sides` of the named per-particle fields),
+    jitted, as per-particle arrays: (N,) or (N, dim)."""
+    def run(pairs, fields):
+        i, j = sides(pairs, **fields)
+        return jax.tree_util.tree_map(rows, fn(pairs, i, j), is_leaf=lambda x: isinstance(x, PVec))
+
+    return jax.jit(run)(pairs, fields)
 
 
 def periodic_scene(dx, r, u, effects=sph.Effects(), material=sph.Material(), name="box"):

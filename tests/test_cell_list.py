@@ -11,7 +11,7 @@
   reorders the pair sums).
 * Speed work: cell_sort is the default search; the bit-count compaction of a build equals the
   exclusive prefix sum; equal searches compare and hash equal (compiled allocation shared); the
-  step evaluated in row blocks (sph.pairs.row_blocked) equals the unblocked step and its gradient
+  step evaluated in row blocks (sph.blocks) equals the unblocked step and its gradient
   to round-off for every kind of scene (walls, Riemann walls, re-initialization, heat, 3D), and
   operations across particles inside a blocked function are evaluated over all rows.
 """
@@ -278,15 +278,15 @@ BLOCKED_SCENES = _blocked_scenes()
 
 @pytest.mark.parametrize("name", list(BLOCKED_SCENES))
 def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
-    """The step evaluated in blocks of a few particles (sph.pairs.row_blocked, several passes, the
-    last block overlapping the one before) gives the unblocked state to round-off, walls, Riemann
+    """The step evaluated in blocks of a few particles (sph.blocks, every pass, the last block
+    overlapping the one before) gives the unblocked state to round-off, walls, Riemann
     walls, density re-initialization and heat included, and so does a gradient through two steps."""
-    import sph.pairs
+    import sph.blocks
 
     scene = BLOCKED_SCENES[name]
 
     def run(block_pairs):
-        monkeypatch.setattr(sph.pairs, "BLOCK_PAIRS", block_pairs)
+        monkeypatch.setattr(sph.blocks, "BLOCK_PAIRS", block_pairs)
         solver = sph.build_solver(scene, sph.Numerics(dtype="float64"))
         state, nbrs = solver.init_fn()
         step = jax.jit(solver.step_fn)
@@ -319,48 +319,33 @@ def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
     assert float(jnp.max(jnp.abs(g - g_ref))) <= 1e-10 * float(jnp.max(jnp.abs(g_ref)))
 
 
-def test_row_blocked_handles_operations_across_particles():
-    """Operations that are not row-local (a sum over particles, a cumulative sum, a gather of a
-    value the same function computed from the pairs) are evaluated over all rows; the result equals
-    the unblocked function exactly where no pair sum is reordered."""
-    from sph.pairs import row_blocked
+def test_blocks_join_every_row_once(monkeypatch):
+    """`sph.blocks.over_rows` gives each row its own result exactly once, also when the last block
+    overlaps the one before (50 rows in blocks of 7, 13 and 49 rows), and equals the whole list."""
+    import sph.blocks
 
     n, k = 50, 6
-    rng = np.random.default_rng(0)
-    idx = jnp.asarray(rng.integers(0, n + 1, size=(n, k)), jnp.int32)  # n = padding
-    x = jnp.asarray(rng.normal(size=n))
-    v = jnp.asarray(rng.normal(size=(n, 2)))
+    idx = jnp.asarray(np.random.default_rng(0).integers(0, n + 1, size=(n, k)), jnp.int32)
+    x = jnp.asarray(np.random.default_rng(1).normal(size=n))
 
-    def fn(idx, x, v):
-        j = jnp.where(idx < n, idx, 0)
-        w = jnp.where(idx < n, 1.0, 0.0)
-        s = jnp.sum(w * x[j], axis=1)                           # a pair sum (pass 1)
-        t = jnp.sum(w * s[j] * v.T[0][:, None], axis=1)          # gathers s: a second pass
-        total = jnp.sum(s)                                       # over all particles
-        c = jnp.cumsum(s * x)                                    # along the particles
-        vec = jnp.stack([w * v.T[a][j] for a in range(2)])       # a component-major pair vector
-        return s, t + total, c, jnp.sum(vec, axis=-1).T, x * 2.0
+    def body(start, size, idx_rows):
+        own = x if size is None else jax.lax.dynamic_slice_in_dim(x, start, size)
+        rows = jnp.arange(n) if size is None else start + jnp.arange(size)
+        return jnp.sum(jnp.where(idx_rows < n, x[jnp.minimum(idx_rows, n - 1)], 0.0), axis=1) * own, rows
 
-    ref = jax.jit(fn)(idx, x, v)
+    ref, ref_rows = body(0, None, idx)
     for rows in (7, 13, 49):
-        out = jax.jit(row_blocked(fn, rows))(idx, x, v)
-        for a, b in zip(out, ref):
-            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-13, atol=1e-13)
+        monkeypatch.setattr(sph.blocks, "BLOCK_PAIRS", rows * k)
+        out, got_rows = jax.jit(lambda idx: sph.blocks.over_rows(body, idx))(idx)
+        np.testing.assert_array_equal(np.asarray(got_rows), np.arange(n))
+        np.testing.assert_array_equal(np.asarray(out), np.asarray(ref))
 
 
-def test_row_blocked_evens_out_its_blocks():
+def test_blocks_even_out(monkeypatch):
     """A row count just above the block target is split into equal blocks (50 rows at a target of 49:
     two blocks of 25, not 49 + 49 with 48 rows computed twice)."""
-    from sph.pairs import row_blocked
+    import sph.blocks
 
-    n, k = 50, 6
-    idx = jnp.asarray(np.random.default_rng(1).integers(0, n, size=(n, k)), jnp.int32)
-    x = jnp.linspace(0.0, 1.0, n)
-
-    def fn(idx, x):
-        return jnp.sum(x[idx] * x[:, None], axis=1)
-
-    text = str(jax.make_jaxpr(row_blocked(fn, 49))(idx, x))
-    assert "length=2" in text and "[25,6]" in text and "[49,6]" not in text
-    np.testing.assert_allclose(np.asarray(jax.jit(row_blocked(fn, 49))(idx, x)), np.asarray(fn(idx, x)),
-                               rtol=1e-14)
+    monkeypatch.setattr(sph.blocks, "BLOCK_PAIRS", 49 * 6)
+    assert sph.blocks.block_rows(50, 6) == 25
+    assert sph.blocks.block_rows(49, 6) == 49 and sph.blocks.block_rows(101, 6) == 34

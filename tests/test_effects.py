@@ -25,11 +25,10 @@ PHYSICS = {
     "riemann.acceleration": (riemann, "acceleration"),
     "momentum.artificial_viscosity": (momentum, "artificial_viscosity"),
     "walls.pressure": (walls, "pressure"),
-    "walls.extrapolate_vec": (walls, "extrapolate_vec"),
     "walls.extrapolate": (walls, "extrapolate"),
     "heat.temperature_rate": (heat, "temperature_rate"),
 }
-WALL_PASS = {"walls.pressure", "walls.extrapolate_vec"}
+WALL_PASS = {"walls.pressure", "walls.extrapolate"}
 HOT = sph.Material(eta=0.01, kappa=0.1, c_p=1.0)
 SCENES = {  # name -> (scene factory, physics the step must call, has temperature)
     "tank": (lambda: tank.scene(0.1, MAT, sph.Effects(walls="no_slip", gravity=(0.0, -1.0), density_evolution=True),
@@ -122,7 +121,7 @@ def test_step_calls_only_declared_physics(case, recorder, state_and_list):
     assert called == expected, f"{case}: step called {sorted(called)}, expected {sorted(expected)}"
     for name, args, kwargs in recorder:
         if name == "momentum.acceleration":  # the TVF stress terms are traced only with TVF
-            tvf = kwargs["tvf"] if "tvf" in kwargs else args[7]
+            tvf = kwargs["tvf"] if "tvf" in kwargs else args[4]
             assert tvf is effects.tvf
 
 
@@ -177,6 +176,8 @@ def test_wall_and_heat_passes_only_when_declared(name, recorder):
     assert called == expected, f"{name}: step called {sorted(called)}, expected {sorted(expected)}"
     assert (state.T is not None) is has_T
     assert ("thermal" in solver.dt_limits) is has_T
+    if WALL_PASS <= called:  # the wall pass extrapolates u^ and, only with heat, T
+        assert sum(n == "walls.extrapolate" for n, _, _ in recorder) == (2 if has_T else 1)
 
 
 def test_scene_without_walls_or_heat_has_no_such_work(recorder, state_and_list):

@@ -22,7 +22,7 @@ from sph.heat import TemperatureZone
 from sph.rollout import scan_rollout
 from sph.scene import Scene
 from sph.state import FLUID
-from sph_test_helpers import UNIT_SQUARE, jittered_lattice, lattice, periodic_pairs
+from sph_test_helpers import UNIT_SQUARE, jittered_lattice, lattice, per_particle, periodic_pairs
 
 KAPPA, C_P = 7.313, 305.27          # the hot channel's fluid (JAX-SPH cases/ht.py)
 MAT = sph.Material(rho_ref=1.0, eta=0.01, u_ref=1.0, kappa=KAPPA, c_p=C_P)
@@ -69,9 +69,9 @@ def test_operator_rate_of_a_sine_matches_alpha_k2():
     r = lattice(dx)
     kernel, pairs = periodic_pairs(r, dx)
     mass = jnp.full(len(r), MAT.rho_ref * dx**2)
-    rho = density.summation(pairs, mass, float(kernel.w(0.0)))
+    rho = per_particle(density.Summation(float(kernel.w(0.0))), pairs, mass=mass)
     T = jnp.asarray(T0 + AMP * np.sin(K * r[:, 0]))
-    rate = np.asarray(heat.temperature_rate(pairs, rho, T, mass, KAPPA, C_P))
+    rate = np.asarray(per_particle(heat.Conduction(KAPPA, C_P), pairs, rho=rho, T=T, mass=mass).dTdt)
     exact = -ALPHA * K**2 * AMP * np.sin(K * r[:, 0])
     # the lattice sine is an eigenvector: the rate is a multiple of it at every particle
     ratio = np.sum(rate * exact) / np.sum(exact**2)
@@ -169,10 +169,11 @@ def test_dirichlet_walls_keep_their_temperature_and_free_walls_extrapolate():
     solver = sph.build_solver(free, sph.Numerics(p_bg_factor=0.05))
     state, nbrs = _init(solver)
     pairs = solver.pairs_fn(state.r, nbrs)
-    fw = walls.fluid_weights(pairs, jnp.asarray(free.fluid_mask, jnp.float64))
-    expected = np.asarray(walls.extrapolate(pairs, fw, jnp.asarray(T)))
+    fluid = jnp.asarray(free.fluid_mask, jnp.float64)
+    expected = np.asarray(per_particle(lambda pp, i, j: walls.extrapolate(walls.fluid_weights(pp, j), j.T), pairs,
+                                       fluid=fluid, T=jnp.asarray(T)))
     got = np.asarray(state.T)
-    near = wall & (np.asarray(fw.inv) > 0)
+    near = wall & np.asarray(jnp.sum(pairs.w * fluid[pairs.j], axis=1) > 0)
     np.testing.assert_allclose(got[near], expected[near], rtol=1e-10)
     assert np.all(got[near] > 1.0)  # not the initial wall value
 

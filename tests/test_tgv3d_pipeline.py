@@ -88,9 +88,8 @@ def test_lattice_energy_is_one_eighth_and_viscous_operator_converges():
 
         @jax.jit
         def viscous_dissipation(state, nbrs):
-            pairs = solver.pairs_fn(state.r, nbrs)
-            a = momentum.acceleration(pairs, state.rho, jnp.zeros_like(state.p), state.u, state.u, state.mass, NU,
-                                      False)
+            a = solver.sweep_fn(momentum.Momentum(NU), nbrs, r=state.r, rho=state.rho, p=jnp.zeros_like(state.p),
+                                u_visc=state.u, v_stress=state.u, mass=state.mass, vol=state.mass / state.rho).dudt
             return -jnp.sum(state.mass[:, None] * state.u * a) / tgv3d.SIDE**3
 
         errors[n] = 1.0 - float(viscous_dissipation(state, nbrs)) / EPS0
