@@ -126,6 +126,33 @@ def test_core_never_imports_the_harness():
                 assert not any(a.name.startswith("sph.harness") for a in node.names), path
 
 
+def test_file_keys_ignore_docstrings_and_comments(tmp_path, monkeypatch):
+    """Every code key is an AST digest: SitL's training key (sitl.settings.train_fingerprint) too."""
+    from sitl import settings as sitl_settings
+
+    copy = tmp_path / "sitl"
+    shutil.copytree(ROOT / "sitl", copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(sitl_settings, "HERE", copy)
+    exp = sitl_settings.load("smoke")
+    before = sitl_settings.train_fingerprint(exp, "gns", "{}")
+    _edit_docstring(copy / "model.py")
+    assert sitl_settings.train_fingerprint(exp, "gns", "{}") == before
+    (copy / "train.py").write_text((copy / "train.py").read_text() + "\nEXTRA = 1\n")
+    assert sitl_settings.train_fingerprint(exp, "gns", "{}") != before
+
+
+def test_sitl_dataset_prerequisites_are_its_code_closure(capsys):
+    """sitl/rules.mk makes the dataset depend on `python3 -P sph/harness/keys.py generate.py settings.py`:
+    the generator, the RPF case and the solver's modules, not the file formats nor the whole of sph/."""
+    files = [ROOT / "sitl" / "generate.py", ROOT / "sitl" / "settings.py"]
+    keys.main([str(f) for f in files])
+    listed = set(capsys.readouterr().out.split())
+    assert {"sitl/generate.py", "sph/cases/rpf.py", "sph/solver.py", "sph/rollout.py"} <= listed
+    assert not {"sph/harness/io.py", "sph/harness/animate.py", "sph/cases/ldc.py"} & listed
+    assert "$(shell python3 -P sph/harness/keys.py $(SITL)/generate.py $(SITL)/settings.py" in \
+        (ROOT / "sitl" / "rules.mk").read_text()
+
+
 def test_import_sph_leaves_x64_off():
     out = subprocess.run([sys.executable, "-c", "import sph, jax; print(jax.config.jax_enable_x64)"],
                          capture_output=True, text=True, check=True)
