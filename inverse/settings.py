@@ -184,6 +184,7 @@ def fig_dir(results) -> Path:
 # -- fingerprint ----------------------------------------------------------------------------------
 def fingerprint(exp: Experiment) -> str:
     """Inputs of run.py: the whole profile (path_optimizer and rmse_targets only affect the plot and
-    the report, but hashing them too is harmless) and the code (sph/, settings, scene, run)."""
+    the report, but hashing them too is harmless) and the code: settings.py, scene.py, run.py and the
+    sph modules they and the solver import (sph.harness.keys.code_fingerprint)."""
     code = code_fingerprint([HERE / n for n in ("settings.py", "scene.py", "run.py")])
     return digest({"experiment": to_mapping(exp), "code": code})

@@ -11,7 +11,7 @@ import time
 
 from sph.harness import tgv2d, tgv2d_runs
 from sph.harness.configtools import ConfigError, to_mapping
-from sph.harness.study import Study
+from sph.harness.layout import Study
 
 try:
     from . import settings as S

@@ -191,5 +191,5 @@ def settings_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
 
 
 def run_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
-    """Digest of the solver inputs and the code (sph/, run.py) of one run."""
+    """Digest of the solver inputs and the code of one run (`code_hash`)."""
     return digest({"settings": settings_fingerprint(exp, method, dx), "code": code_hash()})

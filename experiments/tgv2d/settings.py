@@ -5,8 +5,9 @@ from pathlib import Path
 from typing import Optional
 
 from sph.harness import tgv2d
-from sph.harness.study import Method, Study
-from sph.harness.tgv2d import Experiment, dx_tag  # noqa: F401  (the settings of this experiment)
+from sph.harness.layout import Study, dx_tag
+from sph.harness.study import Method
+from sph.harness.tgv2d import Experiment  # noqa: F401  (the settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name

@@ -12,7 +12,8 @@ import sph
 from sph.cases import tgv3d
 from sph.harness.configtools import ConfigError, load_profile, require, require_finite, to_mapping
 from sph.harness.keys import digest
-from sph.harness.study import Method, Study, check_methods, check_output
+from sph.harness.layout import Study
+from sph.harness.study import Method, check_methods, check_output
 from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent

@@ -10,7 +10,8 @@
   cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
   stamp.py         make stamps that change only when a run step changed its outputs
   xla_cpu.py       XLA's CPU flags for the pair sums, set by the entry points
-  study.py         a study's methods, paths, cache keys, relaxed periodic starts and sweep (TGV 2D / 3D)
+  layout.py        where a study writes (results/<profile>/<name>/<method>_<tag>/) and its code key
+  study.py         a study's methods, relaxed periodic starts, run spec and sweep (TGV 2D / 3D)
   tgv2d.py         the 2D Taylor-Green study's settings and fingerprints; tgv2d_runs.py its runs and
                    metrics (experiments/tgv2d and the accuracy atlas's TGV sweep run them)
 

@@ -22,7 +22,7 @@ SPH_ROOT = Path(__file__).resolve().parents[1]
 
 NUMBER_NEUTRAL = frozenset({
     "sph.harness", "sph.harness.animate", "sph.harness.cli", "sph.harness.configtools", "sph.harness.io",
-    "sph.harness.keys", "sph.harness.record", "sph.harness.runs", "sph.harness.stamp", "sph.harness.tables",
+    "sph.harness.keys", "sph.harness.layout", "sph.harness.record", "sph.harness.runs", "sph.harness.stamp", "sph.harness.tables",
     "sph.harness.xdmf", "sph.harness.xla_cpu"})
 """sph modules that cannot change a run's numbers: file formats, bookkeeping, the command line (every
 other module of sph.harness, e.g. a study's scene set-up, counts; tests check the package is covered)."""

@@ -1,15 +1,14 @@
 """A study: named methods (the effects their scenes declare) run at each resolution of a profile.
 
 What the Taylor-Green studies share (experiments/tgv2d, experiments/tgv3d and the accuracy atlas's
-TGV sweep): the method list and its checks, where a study writes (`Study`: results/<profile>/<name>/
-<method>_<tag>/, relaxed starts and metrics.csv beside them), the code its cache keys cover, the
-relaxed start of a periodic box (a jittered lattice relaxed with `sph.relax`, cached), the cached
-run's spec and the sweep over (resolution, method). What a study measures stays with the study.
+TGV sweep): the method list and its checks, the relaxed start of a periodic box (a jittered lattice
+relaxed with `sph.relax`), the cached run's spec and the sweep over (resolution, method). Where a
+study writes and which of its files its keys cover is `sph.harness.layout.Study`. What a study
+measures stays with the study.
 """
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable, Iterable, Optional
+from typing import Callable, Optional
 
 import numpy as np
 import pandas as pd
@@ -19,7 +18,7 @@ from ..config import Effects
 from ..errors import require
 from ..lattice import cartesian, jitter
 from . import runs
-from .keys import code_fingerprint
+from .layout import Study
 
 KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
 """Per-frame fields a study may keep besides position (sph.harness.io.FIELDS)."""
@@ -48,35 +47,6 @@ def check_output(exp) -> None:
             f"must be positive, got {exp.connectivity_radius_factor}")
     for i, k in enumerate(exp.keep):
         require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
-
-
-@dataclass(frozen=True)
-class Study:
-    """Where a study writes and which of its own files its cache keys cover.
-
-    name    results/<profile>/<name> (an experiment's folder name: a copied folder is a study of its own)
-    folder  the folder of the study's own scripts (settings.py, run.py, ...), hashed into its keys
-    """
-
-    name: str
-    folder: Path
-
-    def out_dir(self, results) -> Path:
-        return Path(results) / self.name
-
-    def run_dir(self, results, method: str, tag: str) -> Path:
-        return self.out_dir(results) / f"{method}_{tag}"
-
-    def relaxed_path(self, results, tag: str) -> Path:
-        return self.out_dir(results) / f"relaxed_{tag}.npy"
-
-    def metrics_path(self, results) -> Path:
-        return self.out_dir(results) / "metrics.csv"
-
-    def code_hash(self, *scripts: str, modules: Iterable[str] = ()) -> str:
-        """Hash of the solver's code, settings.py and the named scripts of the study's folder, with
-        the sph modules they import (sph.harness.keys.code_fingerprint) and `modules`."""
-        return code_fingerprint([Path(self.folder) / n for n in ("settings.py", *scripts)], tuple(modules))
 
 
 def relax_periodic(scene_fn: Callable, box: tuple, dx: float, material, numerics, relaxation,

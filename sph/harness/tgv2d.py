@@ -10,7 +10,8 @@ from ..config import Material, Numerics
 from ..relax import Relaxation
 from .configtools import load_profile, require, require_finite, to_mapping
 from .keys import digest
-from .study import Method, Study, check_methods, check_output
+from .layout import Study
+from .study import Method, check_methods, check_output
 
 RELAX_MODULES = ("sph.harness.study", "sph.cases.tgv")
 """The code of a relaxed start besides the solver's (the study's relaxation, the TGV scene)."""
@@ -62,10 +63,6 @@ class Experiment:
 def load(path, profile: str, overrides: Optional[dict] = None) -> Experiment:
     """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
     return load_profile(Experiment, path, profile, overrides)
-
-
-def dx_tag(dx: float) -> str:
-    return f"dx{dx:g}"
 
 
 def relax_fingerprint(study: Study, exp: Experiment, dx: float) -> str:

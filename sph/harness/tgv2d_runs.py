@@ -14,10 +14,11 @@ from ..cases import tgv
 from ..solver import Solver, build_solver
 from . import io, runs
 from .configtools import to_mapping
+from .layout import Study, dx_tag
 from .record import record, save_record
-from .study import Method, Study, relax_periodic, run_spec, sweep
+from .study import Method, relax_periodic, run_spec, sweep
 from .tables import write_table
-from .tgv2d import Experiment, dx_tag, relax_fingerprint, run_fingerprint
+from .tgv2d import Experiment, relax_fingerprint, run_fingerprint
 
 BOX = (1.0, 1.0)
 
