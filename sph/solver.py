@@ -3,7 +3,8 @@
     constants = derive(scene, numerics)               kernel, EoS, c_ref, p_b, body force, dt
     refuse what cannot give a correct result          sph.checks (resolution, memory; dt warning)
     terms = choose_terms(scene, numerics, constants)  sph.terms: the terms of each pass, from the effects
-    state_at, step_fn = make_step(...)                sph.step: kick, drift, the pair passes
+    passes = Passes.of(scene, constants, terms)       sph.step: the pair passes, then
+    state_at, step_fn                                 kick, drift and the passes in order
 
 Only the declared effects are traced into the step: a scene without TVF carries no TVF terms, one
 without gravity adds no body force, one with summation density never evaluates the continuity sum,
@@ -26,7 +27,7 @@ from .diagnostics import StepGuard
 from .neighbors import NeighborSearch, make_neighbor_search
 from .pairs import pair_geometry
 from .scene import Scene
-from .step import make_step
+from .step import Passes, state_at_fn, step_fn_of
 from .terms import choose_terms
 from .views import Particles, whole_list_pairs
 
@@ -82,7 +83,8 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics(), extra_terms=()) 
         warn_fixed_dt(scene, c.dt, c.limits)
     nsearch = make_neighbor_search(scene.domain, c.kernel.cutoff, c.skin, numerics.capacity_multiplier,
                                    backend=numerics.neighbor_search)
-    state_at, step_fn = make_step(scene, c, choose_terms(scene, numerics, c, extra_terms), nsearch)
+    passes = Passes.of(scene, c, choose_terms(scene, numerics, c, extra_terms))
+    state_at, step_fn = state_at_fn(passes), step_fn_of(passes, nsearch)
 
     def pairs_fn(r, nbrs):
         return whole_list_pairs(r, nbrs.idx, scene.domain, c.margin, c.kernel)
