@@ -6,7 +6,8 @@ out once as a git worktree under cache/bench_ab/<rev>), builds the same scene, c
 then times rounds on request; the driver alternates ref, this, ref, this, ... over pipes
 (bench/peer_protocol.py), so that this shared machine's load hits both alike. Reported per case:
 min and median wall ms per step of each side and their ratio (this / ref: below 1 is faster), and
-memory: XLA's buffer sizes of the compiled chunk (temporaries + arguments + outputs, exact and
+the same for the CPU time of the worker process (all threads; less sensitive to other jobs
+than wall time on a shared machine); memory: XLA's buffer sizes of the compiled chunk (temporaries + arguments + outputs, exact and
 independent of the load) and the peak resident set while stepping above the bare JAX process.
 
     python bench/bench_ab.py --ref a84d12d                       # every case of the matrix below
@@ -115,9 +116,12 @@ def compare(case, ref_path, steps, repeats):
         ref.kill(), this.kill()
     ta = 1e3 * np.array([r["wall_s"] / r["steps"] for r in a])
     tb = 1e3 * np.array([r["wall_s"] / r["steps"] for r in b])
+    ca = 1e3 * np.array([r["cpu_s"] / r["steps"] for r in a])
+    cb = 1e3 * np.array([r["cpu_s"] / r["steps"] for r in b])
     return dict(case=case, n=this.info["n"], k=this.info["k"], ref_min_ms=ta.min(), ref_median_ms=np.median(ta),
                 this_min_ms=tb.min(), this_median_ms=np.median(tb), ratio_min=tb.min() / ta.min(),
-                ratio_median=np.median(tb) / np.median(ta), ref_xla_gb=ref.info["xla_gb"],
+                ratio_median=np.median(tb) / np.median(ta), ref_cpu_median_ms=np.median(ca),
+                this_cpu_median_ms=np.median(cb), cpu_ratio_median=np.median(cb) / np.median(ca), ref_xla_gb=ref.info["xla_gb"],
                 this_xla_gb=this.info["xla_gb"], ref_rss_gb=ma["rss_peak_gb"] - ref.info["rss_base_gb"],
                 this_rss_gb=mb["rss_peak_gb"] - this.info["rss_base_gb"])
 
@@ -147,7 +151,7 @@ def main():
         rows.append(r)
         print(f"  {case:20s} N {r['n']:7d} K {r['k']:4d} | ref {r['ref_min_ms']:9.2f} {r['ref_median_ms']:9.2f} | "
               f"this {r['this_min_ms']:9.2f} {r['this_median_ms']:9.2f} | ratio {r['ratio_min']:.3f} "
-              f"{r['ratio_median']:.3f} | XLA {r['ref_xla_gb']:.3f} / {r['this_xla_gb']:.3f} | RSS "
+              f"{r['ratio_median']:.3f} | CPU ratio {r['cpu_ratio_median']:.3f} | XLA {r['ref_xla_gb']:.3f} / {r['this_xla_gb']:.3f} | RSS "
               f"{r['ref_rss_gb']:.3f} / {r['this_rss_gb']:.3f}", flush=True)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     pd.DataFrame(rows).assign(ref=sha).to_csv(args.out, index=False)

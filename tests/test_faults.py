@@ -32,7 +32,7 @@ from sph.diagnostics import BlowUp, NeighborOverflow, ParticleEscaped, Simulatio
 from sph.domain import Domain
 from sph.lattice import cartesian
 from sph.scene import Scene
-from sph.solver import InsufficientMemory, UnstableTimeStep
+from sph.checks import InsufficientMemory, UnstableTimeStep
 from sph.state import FLUID
 
 DX = 0.05
@@ -244,7 +244,7 @@ def test_huge_scene_is_refused_before_allocating():
 
 
 def test_build_solver_estimates_memory(monkeypatch):
-    import sph.solver as S
+    import sph.checks as S
 
     monkeypatch.setattr(S, "available_memory", lambda: (10**6, "available host memory"))
     with pytest.raises(InsufficientMemory, match=r"400 particles \(dx = 0.05\) with \d+ neighbour slots .* need at least"):
