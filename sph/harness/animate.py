@@ -125,6 +125,41 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
     docstring). Colour range: `vmin`/`vmax`, else [0, max] for speed and the 1st-99th percentile of
     the shown frames' fluid values for the other fields (a pressure spike would wash out the rest)."""
     traj_path, out_path = Path(traj_path), Path(out_path)
+    tr, pos = _read_positions(traj_path, traj)
+    values = field_values(tr, field, traj_path)
+    idx = frame_indices(pos.shape[0], frames)
+    times = tr["time"] if "time" in tr else np.arange(pos.shape[0], dtype=float)
+    meta = _metadata(traj_path.parent)
+    ptype = np.asarray(tr["particle_type"])
+    view = _view(pos, ptype, idx, meta, max_particles)
+    vmin, vmax = _colour_range(np.concatenate([values[k, f] for k, (f, _) in view.shown.items()]), field,
+                               vmin, vmax)
+    if title is None:
+        title = (f"{meta.get('case', traj_path.parent.name)}, {meta.get('solver', '')}, dx = {view.dx:g}"
+                 if meta else traj_path.parent.name)
+    if view.z_mid is not None:
+        title += f", slice z = {view.z_mid:.3g}"
+    fig_w, fig_h = _figure_size(view.hi[0] - view.lo[0], view.hi[1] - view.lo[1])
+    fig, wall_sc, sc, label = _figure(view, (fig_w, fig_h), dpi, (vmin, vmax), FIELDS[field][1], title,
+                                      f"t = {times[idx[0]]:.2f}")
+
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_path.with_name(out_path.stem + ".tmp" + out_path.suffix)
+    writer = _GifWriter(fps=fps)
+    with writer.saving(fig, str(tmp), dpi):
+        for k, (f, w) in view.shown.items():
+            wall_sc.set_offsets(pos[k, w, :2])
+            wall_sc.set_array(np.where(ptype[w] == MOVING_WALL, 0.35, 0.65))  # grey, moving walls darker
+            sc.set_offsets(pos[k, f, :2])
+            sc.set_array(values[k, f])
+            label.set_text(f"t = {times[k]:.2f}")
+            writer.grab_frame()
+    tmp.replace(out_path)
+    return Animation(out_path, len(idx), (int(round(fig_w * dpi)), int(round(fig_h * dpi))), vmin, vmax)
+
+
+def _read_positions(traj_path: Path, traj: str):
+    """(trajectory, its (T, N, dim) positions); a ConfigError unless 2D or 3D with at least one frame."""
     tr = io.read_trajectory(traj_path, traj)
     pos = tr["position"]
     dim = pos.shape[-1]
@@ -132,17 +167,35 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
         raise ConfigError(f"{traj_path}: dim = {dim}; sph.harness.animate draws 2D runs and mid-plane slices of 3D ones")
     if pos.shape[0] == 0:
         raise ConfigError(f"{traj_path}: the trajectory has no frames")
-    values = field_values(tr, field, traj_path)
-    idx = frame_indices(pos.shape[0], frames)
-    times = tr["time"] if "time" in tr else np.arange(pos.shape[0], dtype=float)
-    meta = {}
-    if (traj_path.parent / "metadata.json").exists():
-        try:
-            meta = json.loads((traj_path.parent / "metadata.json").read_text())
-        except ValueError:
-            meta = {}
+    return tr, pos
 
-    ptype = np.asarray(tr["particle_type"])
+
+def _metadata(folder: Path) -> dict:
+    """The run's metadata.json in `folder`; {} where there is none or it is not JSON."""
+    if (folder / "metadata.json").exists():
+        try:
+            return json.loads((folder / "metadata.json").read_text())
+        except ValueError:
+            return {}
+    return {}
+
+
+@dataclass(frozen=True)
+class _View:
+    """What the animation shows: particle spacing dx, axis limits lo / hi, the 3D slice's height z_mid
+    (None in 2D), the fluid subsampling stride, and per drawn frame k (fluid ids, wall ids)."""
+    dx: float
+    lo: np.ndarray
+    hi: np.ndarray
+    z_mid: Optional[float]
+    stride: int
+    shown: dict
+
+
+def _view(pos, ptype, idx, meta: dict, max_particles: int) -> _View:
+    """The particles of frames `idx` to draw: fluid subsampled to about `max_particles`, in 3D only
+    those in the mid-plane slab; the axes the domain's `bounds` (else the particles' extent)."""
+    dim = pos.shape[-1]
     fluid = np.flatnonzero(ptype == FLUID)
     dx = meta.get("dx")
     if dx is None:  # spacing from the fluid's area (volume) at the first frame
@@ -159,9 +212,12 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
     stride = max(1, -(-in_plane(0, fluid).size // max_particles))
     fluid = fluid[::stride]
     walls = np.flatnonzero(ptype != FLUID)
-    shown = {k: (in_plane(k, fluid), in_plane(k, walls)) for k in idx}
+    return _View(dx, lo, hi, z_mid, stride, {k: (in_plane(k, fluid), in_plane(k, walls)) for k in idx})
 
-    drawn = np.concatenate([values[k, f] for k, (f, _) in shown.items()])
+
+def _colour_range(drawn: np.ndarray, field: str, vmin, vmax) -> tuple:
+    """(vmin, vmax): the given ones, else [0, max] for speed and the 1st-99th percentile of the drawn
+    values otherwise; widened around its value when empty."""
     if drawn.size == 0:
         drawn = np.zeros(1)
     if vmin is None:
@@ -170,15 +226,17 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
         vmax = float(np.nanmax(drawn)) if field == "speed" else float(np.nanpercentile(drawn, 99))
     if not vmax > vmin:
         vmin, vmax = vmin - 0.5 * abs(vmin) - 1e-12, vmax + 0.5 * abs(vmax) + 1e-12
-    if title is None:
-        title = (f"{meta.get('case', traj_path.parent.name)}, {meta.get('solver', '')}, dx = {dx:g}"
-                 if meta else traj_path.parent.name)
-    if dim == 3:
-        title += f", slice z = {z_mid:.3g}"
+    return vmin, vmax
 
-    fig_w, fig_h = _figure_size(hi[0] - lo[0], hi[1] - lo[1])
-    fig = Figure(figsize=(fig_w, fig_h), dpi=dpi, layout="constrained")  # no pyplot: the caller's
-    FigureCanvasAgg(fig)                                                  # backend stays as it is
+
+def _figure(view: _View, figsize, dpi, vrange, cbar_label, title, time_label):
+    """(figure, wall scatter, fluid scatter, time label), laid out once (with the first frame's
+    `time_label`) and frozen, markers sized to the spacing: walls squares of side dx, fluid discs of
+    diameter 1.25 dx (times the subsampling)."""
+    lo, hi = view.lo, view.hi
+    vmin, vmax = vrange
+    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")  # no pyplot: the caller's
+    FigureCanvasAgg(fig)                                           # backend stays as it is
     ax = fig.subplots()
     ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
     ax.tick_params(labelsize=7)
@@ -188,30 +246,17 @@ def render(traj_path, out_path, field: str = "speed", frames: int = DEFAULT_FRAM
     sc = ax.scatter([], [], c=[], cmap="viridis", vmin=vmin, vmax=vmax, marker="o", linewidths=0,
                     antialiased=False)
     cb = fig.colorbar(sc, ax=ax, shrink=0.9)
-    cb.set_label(FIELDS[field][1], fontsize=8)
+    cb.set_label(cbar_label, fontsize=8)
     cb.ax.tick_params(labelsize=7)
     fig.suptitle(title, fontsize=9)
-    label = ax.set_title(f"t = {times[idx[0]]:.2f}", fontsize=8)
+    label = ax.set_title(time_label, fontsize=8)
     fig.canvas.draw()  # lay out once, then freeze: every frame has the same axes
     fig.set_layout_engine("none")
     pt_per_unit = ax.get_window_extent().width * 72.0 / dpi / (hi[0] - lo[0])
-    size = max(0.3, (dx * pt_per_unit) ** 2)  # a square of side dx; fluid: discs of diameter 1.25 dx
+    size = max(0.3, (view.dx * pt_per_unit) ** 2)
     wall_sc.set_sizes([size])
-    sc.set_sizes([1.25 ** 2 * size * stride])
-
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_path.with_name(out_path.stem + ".tmp" + out_path.suffix)
-    writer = _GifWriter(fps=fps)
-    with writer.saving(fig, str(tmp), dpi):
-        for k, (f, w) in shown.items():
-            wall_sc.set_offsets(pos[k, w, :2])
-            wall_sc.set_array(np.where(ptype[w] == MOVING_WALL, 0.35, 0.65))  # grey, moving walls darker
-            sc.set_offsets(pos[k, f, :2])
-            sc.set_array(values[k, f])
-            label.set_text(f"t = {times[k]:.2f}")
-            writer.grab_frame()
-    tmp.replace(out_path)
-    return Animation(out_path, len(idx), (int(round(fig_w * dpi)), int(round(fig_h * dpi))), vmin, vmax)
+    sc.set_sizes([1.25 ** 2 * size * view.stride])
+    return fig, wall_sc, sc, label
 
 
 def main(argv=None):

@@ -21,57 +21,75 @@ from ..errors import ConfigError, is_finite_number, require, require_finite  # n
 
 
 def _check_type(value, tp, key, allow_inf: bool = False):
+    """`value` checked against type hint `tp` (and converted: a list to a tuple, a mapping to its
+    dataclass, an int to a float); a ConfigError naming `key` when it does not match."""
     origin = typing.get_origin(tp)
-    args = typing.get_args(tp)
     if tp is typing.Any:
         return value
     if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        errors = []
-        for a in args:
-            if a is type(None):
-                continue
-            try:
-                return _check_type(value, a, key, allow_inf)
-            except ConfigError as e:
-                errors.append(e)
-        if len(errors) == 1:
-            raise errors[0]
-        raise ConfigError(f"{key}: {value!r} does not match {tp}")
+        return _check_union(value, tp, key, allow_inf)
     if origin is tuple:
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key}: expected a list, got {value!r}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_check_type(v, args[0], f"{key}[{i}]", allow_inf) for i, v in enumerate(value))
-        if len(args) != len(value):
-            raise ConfigError(f"{key}: expected {len(args)} entries, got {len(value)}")
-        return tuple(_check_type(v, a, f"{key}[{i}]", allow_inf) for i, (v, a) in enumerate(zip(args, value)))
+        return _check_tuple(value, typing.get_args(tp), key, allow_inf)
     if dataclasses.is_dataclass(tp):
         if isinstance(value, tp):
             return value
         return from_mapping(tp, value, key)
     if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key}: expected a number, got {value!r}")
-        if math.isnan(value) or (math.isinf(value) and not allow_inf):
-            raise ConfigError(f"{key}: must be a finite number, got {value!r}"
-                              + ("" if math.isnan(value) else " (use a large finite value)"))
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key}: expected an integer, got {value!r}")
-        return value
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key}: expected true or false, got {value!r}")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(f"{key}: expected a string, got {value!r}")
-        return value
+        return _check_float(value, key, allow_inf)
+    if tp in (int, bool, str):
+        return _check_scalar(value, tp, key)
     if isinstance(tp, type) and not isinstance(value, tp):
         raise ConfigError(f"{key}: expected {tp.__name__}, got {value!r}")
+    return value
+
+
+def _check_union(value, tp, key, allow_inf):
+    """`value` as the first member of union `tp` it matches (None for an Optional's None); the
+    member's own error when the union has one non-None member."""
+    args = typing.get_args(tp)
+    if value is None and type(None) in args:
+        return None
+    errors = []
+    for a in args:
+        if a is type(None):
+            continue
+        try:
+            return _check_type(value, a, key, allow_inf)
+        except ConfigError as e:
+            errors.append(e)
+    if len(errors) == 1:
+        raise errors[0]
+    raise ConfigError(f"{key}: {value!r} does not match {tp}")
+
+
+def _check_tuple(value, args, key, allow_inf):
+    """A list or tuple checked entry by entry against tuple[args] (fixed length, or tuple[X, ...])."""
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{key}: expected a list, got {value!r}")
+    if len(args) == 2 and args[1] is Ellipsis:
+        return tuple(_check_type(v, args[0], f"{key}[{i}]", allow_inf) for i, v in enumerate(value))
+    if len(args) != len(value):
+        raise ConfigError(f"{key}: expected {len(args)} entries, got {len(value)}")
+    return tuple(_check_type(v, a, f"{key}[{i}]", allow_inf) for i, (v, a) in enumerate(zip(args, value)))
+
+
+def _check_float(value, key, allow_inf):
+    """A number (not a bool) as a float; NaN never, +-inf only with `allow_inf`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{key}: expected a number, got {value!r}")
+    if math.isnan(value) or (math.isinf(value) and not allow_inf):
+        raise ConfigError(f"{key}: must be a finite number, got {value!r}"
+                          + ("" if math.isnan(value) else " (use a large finite value)"))
+    return float(value)
+
+
+_SCALAR_NAMES = {int: "an integer", bool: "true or false", str: "a string"}
+
+
+def _check_scalar(value, tp, key):
+    """An int, bool or str `value` of exactly type `tp` (a bool is not an integer here)."""
+    if not isinstance(value, tp) or (tp is int and isinstance(value, bool)):
+        raise ConfigError(f"{key}: expected {_SCALAR_NAMES[tp]}, got {value!r}")
     return value
 
 
