@@ -12,9 +12,14 @@ FORCE:
 
 
 .PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
+.PHONY: all all-targets all-sitl report snapshot readme-tables
 .DEFAULT_GOAL := help
 
 help:
+	@echo "make all [PROFILE=smoke]        every paper target, the stability matrix, the atlas and the report (resumable, -j2 safe)"
+	@echo "make report [PROFILE=smoke]     results/<profile>/report/index.html + report.md: each figure beside the paper"
+	@echo "make snapshot [PROFILE=paper]   copy the finished report, metrics and records into docs/results/<profile>/ (<= 10 MB)"
+	@echo "make readme-tables              README result tables from the committed snapshot (between <!-- table:NAME --> markers)"
 	@echo "make fig1 [PROFILE=smoke]       gradient check: AD vs finite differences, TGV and cavity (paper Fig. 1)"
 	@echo "make grad-growth                gradient norm against rollout length (1 ... 1000 steps)"
 	@echo "make fig2 [PROFILE=smoke]       inverse problem: recover initial positions (paper Fig. 2)"
@@ -56,6 +61,44 @@ bench: $(VENV)
 	$(PY) bench/bench_effects.py
 	$(PY) bench/bench_guard.py
 	$(PY) bench/bench_grad_memory.py
+
+# --- the whole reproduction (report/README.md) ---------------------------------------------------
+# `make all` prints each target's expected wall time (report.plan: measured by earlier runs, else
+# docs/time_estimates.yaml), then builds the paper targets in dependency order, the stability
+# matrix, then the atlas (it gathers every run record) and the report. Every run step is resumable
+# (its script's cache), and `make -j2 all` runs independent targets side by side: a run folder is
+# locked while written (sph.harness.lock). Table 1 / Fig. 3 need a GPU in the paper profile: without
+# one they are made in the `cpu` profile (SITL_PROFILE), which the report shows labelled as such.
+PAPER_TARGETS := fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10
+SITL_TARGETS  := table1 fig3
+HAS_GPU       := $(shell nvidia-smi -L >/dev/null 2>&1 && echo yes)
+ifeq ($(PROFILE)$(HAS_GPU),paper)
+SITL_PROFILE  ?= cpu
+else
+SITL_PROFILE  ?= $(PROFILE)
+endif
+README_PROFILE ?= paper
+
+all: | $(VENV)
+	+@$(PY) -m report.plan --profile $(PROFILE) --results $(RESULTS) --sitl-profile $(SITL_PROFILE) \
+	  $(PAPER_TARGETS) $(SITL_TARGETS) stability accuracy
+	+@$(MAKE) --no-print-directory all-targets
+
+all-targets: $(PAPER_TARGETS) all-sitl stability
+	+$(MAKE) --no-print-directory accuracy
+	+$(MAKE) --no-print-directory report
+
+all-sitl:
+	+$(MAKE) --no-print-directory $(SITL_TARGETS) PROFILE=$(SITL_PROFILE) RESULTS=$(dir $(RESULTS))$(SITL_PROFILE)
+
+report: | $(VENV)
+	$(PY) -m report.build --profile $(PROFILE) --results $(RESULTS)
+
+snapshot: | $(VENV)
+	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE)
+
+readme-tables: | $(VENV)
+	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE) --readme README.md
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import simulate
 from . import io, xdmf
+from .lock import folder_lock
 from .configtools import to_mapping
 from .io import read_metadata
 
@@ -142,7 +143,16 @@ def run_cached(spec: RunSpec, make_solver: Callable, initial_state: Optional[Cal
     make_solver()            -> sph.Solver (called only when something has to run)
     initial_state(solver)    -> (state, nbrs) of a fresh run (default: solver.init_fn())
     callback(step, t, state) after every frame, as in sph.simulate.run
+
+    The run folder is locked while this runs (sph.harness.lock): a second process asking for the same
+    run (`make -j2`) waits, then finds it complete and skips it.
     """
+    with folder_lock(spec.folder):
+        return _run_locked(spec, make_solver, initial_state, progress, callback)
+
+
+def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Callable], progress: bool,
+                callback: Optional[Callable]) -> RunOutcome:
     kind = stored_state(spec)
     label = spec.label
     if kind == "current":
@@ -201,6 +211,11 @@ def cached_positions(path, fingerprint: str, compute: Callable, label: str, **me
     reused when the sidecar holds `fingerprint`, else `compute()` -> (r, info) runs and both files are
     written (the array atomically; `meta` and `info` go into the sidecar). Prints one summary line."""
     path = Path(path)
+    with folder_lock(path.parent, name=f".{path.stem}.lock"):  # one writer at a time (make -j2)
+        return _positions_locked(path, fingerprint, compute, label, **meta)
+
+
+def _positions_locked(path: Path, fingerprint: str, compute: Callable, label: str, **meta) -> np.ndarray:
     side = path.with_suffix(".json")
     stored = read_metadata(side) if path.exists() else None
     if stored is not None and stored.get("fingerprint") == fingerprint:

@@ -1,0 +1,82 @@
+"""Where a report's numbers were made: commit, date, CPU / GPU model, jax / jaxlib / jax-md /
+lagrangebench versions, profile. `collect()` reads them from this checkout and machine;
+`load_or_collect(results)` prefers a provenance.json stored with the results (a snapshot carries
+the provenance of the machine that made its runs, not of the one that copies them)."""
+import datetime
+import json
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+from .paper import ROOT
+
+PACKAGES = ("jax", "jaxlib", "jax-md")
+FILE = "provenance.json"
+
+
+def _git(*args) -> str:
+    try:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=20).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def commit() -> str:
+    sha = _git("rev-parse", "HEAD") or "unknown"
+    dirty = _git("status", "--porcelain", "--untracked-files=no")
+    return sha + (" (with uncommitted changes)" if dirty else "")
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def cpu_count() -> int:
+    import os
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
+
+
+def gpu_model() -> str:
+    try:
+        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
+                             text=True, timeout=20)
+        names = [n.strip() for n in out.stdout.splitlines() if n.strip()]
+        return ", ".join(names) if out.returncode == 0 and names else "none"
+    except (OSError, subprocess.SubprocessError):
+        return "none"
+
+
+def version(pkg: str) -> str:
+    try:
+        return metadata.version(pkg)
+    except metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def lagrangebench_version(venv=ROOT / ".venv-lb") -> str:
+    """LagrangeBench's version in .venv-lb (read from its dist-info; that environment is not this one)."""
+    found = sorted(Path(venv).glob("lib/python*/site-packages/lagrangebench-*.dist-info"))
+    return found[-1].name[len("lagrangebench-"):-len(".dist-info")] if found else "not installed (.venv-lb)"
+
+
+def collect(profile: str) -> dict:
+    return {"profile": profile, "commit": commit(),
+            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "cpu": f"{cpu_model()} ({cpu_count()} cores available)", "gpu": gpu_model(),
+            **{p: version(p) for p in PACKAGES}, "lagrangebench": lagrangebench_version(),
+            "python": platform.python_version()}
+
+
+def load_or_collect(results, profile: str) -> dict:
+    """The results' own provenance.json (a snapshot's) if there is one, else this machine's."""
+    p = Path(results) / FILE
+    if p.exists():
+        return json.loads(p.read_text())
+    return collect(profile)

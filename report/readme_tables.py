@@ -1,0 +1,174 @@
+"""`make readme-tables`: the README's result tables, generated from the committed snapshot's
+records (docs/results/<profile>/), between marker comments:
+
+    <!-- table:NAME -->
+    ...generated...
+    <!-- /table:NAME -->
+
+    python -m report.readme_tables --snapshot docs/results/paper --readme README.md [--check]
+
+Tables (TABLES): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
+`atlas` (the cheapest setting per error level, accuracy/runs.csv) and `figures` (the key figures
+with one sentence each, `readme_caption` in docs/paper_values.yaml). Only marked tables are touched;
+a marker whose source is not in the snapshot is an error. --check changes nothing and exits 1 when
+the README differs from what the snapshot gives (tests/test_report.py)."""
+import argparse
+import difflib
+import os
+import re
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from . import atlas, paper
+
+MARKER = re.compile(r"(<!-- table:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.S)
+METHODS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
+
+
+class SourceMissing(FileNotFoundError):
+    pass
+
+
+def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
+    f = snapshot / rel
+    if not f.exists():
+        raise SourceMissing(f"{f}: not in the snapshot")
+    return pd.read_csv(f)
+
+
+def pct(v, digits: int = 3) -> str:
+    return "-" if pd.isna(v) else f"{100 * float(v):.{digits}g} %"
+
+
+def sci(v) -> str:
+    """7.1e-09 -> 7.1e-9."""
+    if v is None or pd.isna(v):
+        return "-"
+    m, e = f"{float(v):.1e}".split("e")
+    return f"{m}e{int(e)}"
+
+
+def tgv2d(snapshot: Path) -> list:
+    t = _csv(snapshot, "fig5/metrics.csv")
+    order = {m: i for i, m in enumerate(METHODS)}
+    t = t.assign(_m=t["method"].map(order).fillna(99)).sort_values(["_m", "dx"], ascending=[True, False])
+    lines = ["| method | dx | u_max error t = 1 | t = 2 | time-averaged u_max / E_kin error | ms per step |",
+             "|---|---|---|---|---|---|"]
+    for _, r in t.iterrows():
+        lines.append(f"| {METHODS.get(r['method'], r['method'])} | {r['dx']:g} | {pct(r.get('u_max_relerr_t1'))} | "
+                     f"{pct(r.get('u_max_relerr_t2'))} | {pct(r['u_max_relerr_mean'])} / {pct(r['e_kin_relerr_mean'])} | "
+                     f"{float(r['ms_per_step']):.3g} |")
+    return lines
+
+
+def table1(snapshot: Path) -> list:
+    t = _csv(snapshot, "table1/table1.csv").set_index("metric")
+    models = [m for m in ("solver", "gns", "sitl") if f"{m}_ours" in t]
+    names = {"solver": "solver only", "gns": "GNS", "sitl": "SitL"}
+    lines = ["| metric | " + " | ".join(f"{names[m]} (ours / paper)" for m in models) + " |",
+             "|---|" + "---|" * len(models)]
+    for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
+        if metric not in t.index:
+            continue
+        ours = {m: pd.to_numeric(t.loc[metric, f"{m}_ours"], errors="coerce") for m in models}
+        best = min((v for v in ours.values() if pd.notna(v)), default=None)
+        cells = [(f"**{sci(ours[m])}**" if ours[m] == best else sci(ours[m])) + f" / {sci(t.loc[metric, f'{m}_paper'])}"
+                 for m in models]
+        lines.append(f"| {metric} | " + " | ".join(cells) + " |")
+    if "inference s / coarse step" in t.index:
+        ms = [1e3 * float(t.loc["inference s / coarse step", f"{m}_ours"]) for m in models]
+        lines.append("| ms per coarse step | " + " | ".join(f"{v:.2g}" if v < 100 else f"{v:.0f}" for v in ms) + " |")
+    if "training steps" in t.index and "training wall s" in t.index:
+        cells = []
+        for m in models:
+            steps, wall = t.loc["training steps", f"{m}_ours"], t.loc["training wall s", f"{m}_ours"]
+            ok = pd.notna(pd.to_numeric(steps, errors="coerce")) and m != "solver"
+            cells.append(f"{int(float(steps))} steps, {float(wall):.0f} s" if ok else "")
+        lines.append("| training | " + " | ".join(cells) + " |")
+    return lines
+
+
+def atlas_table(snapshot: Path, profile: str) -> list:
+    runs = snapshot / "accuracy" / "runs.csv"
+    if not runs.exists():
+        raise SourceMissing(f"{runs}: not in the snapshot")
+    lines = ["| error you accept | cheapest setting that reaches it | wall time of the run |", "|---|---|---|"]
+    for r in atlas.cheapest(runs, profile):
+        if r.run is None:
+            lines.append(f"| {100 * r.level:g} % | no run | - |")
+            continue
+        setting = f"{atlas.setting_label(r.run)}, dx {r.run['dx']:g} ({int(r.run['n_particles'])} particles)"
+        if r.reached:
+            lines.append(f"| {100 * r.level:g} % | {setting} | {float(r.run['wall_s']):.2g} s |")
+        else:
+            lines.append(f"| {100 * r.level:g} % | no setting of the sweep (best: {setting}: {pct(r.run['error'], 2)}, "
+                         f"{float(r.run['wall_s']):.2g} s) | - |")
+    return lines
+
+
+def figures(snapshot: Path, readme: Path) -> list:
+    lines = []
+    for name, entry in paper.targets().items():
+        cap = entry.get("readme_caption")
+        figs = [f for f in entry.get("figures") or [] if (snapshot / f).exists()]
+        if not cap or not figs:
+            continue
+        link = os.path.relpath(snapshot / figs[0], readme.parent)
+        lines += [f"**{entry['paper']['where']}** ({name}): {cap}", "", f"![{name}]({link})", ""]
+    if not lines:
+        raise SourceMissing(f"{snapshot}: no figure of the snapshot has a readme_caption")
+    return lines[:-1]
+
+
+def tables(snapshot: Path, readme: Path, profile: str) -> dict:
+    return {"tgv2d": lambda: tgv2d(snapshot), "table1": lambda: table1(snapshot),
+            "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme)}
+
+
+def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> str:
+    """`text` with every marked table replaced by the one the snapshot gives."""
+    gens = tables(Path(snapshot), Path(readme), profile or Path(snapshot).name)
+
+    def sub(m):
+        name = m.group("name")
+        if name not in gens:
+            raise KeyError(f"{readme}: unknown table marker {name!r} (known: {', '.join(gens)})")
+        return m.group(1) + "\n".join(gens[name]()) + "\n" + m.group(4)
+
+    return MARKER.sub(sub, text)
+
+
+def markers(text: str) -> list:
+    return [m.group("name") for m in MARKER.finditer(text)]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--snapshot", default="docs/results/paper")
+    ap.add_argument("--readme", default="README.md")
+    ap.add_argument("--profile", default=None, help="the atlas config's profile (default: the snapshot folder's name)")
+    ap.add_argument("--check", action="store_true")
+    a = ap.parse_args(argv)
+    readme = Path(a.readme)
+    old = readme.read_text()
+    try:
+        new = regenerate(old, Path(a.snapshot), readme, a.profile)
+    except (SourceMissing, KeyError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if a.check:
+        if new != old:
+            sys.stdout.writelines(difflib.unified_diff(old.splitlines(True), new.splitlines(True), str(readme), "generated"))
+            return 1
+        print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} match {a.snapshot}")
+        return 0
+    if new != old:
+        readme.write_text(new)
+    print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} {'regenerated' if new != old else 'unchanged'} from {a.snapshot}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,103 @@
+"""`make snapshot [PROFILE=paper]`: a finished report with its figures (compressed PNGs), metrics
+tables and run records, copied into docs/results/<profile>/ with its provenance, small enough to
+commit (<= 10 MB in all; checked).
+
+    python -m report.snapshot --profile paper [--results results/paper] [--out docs/results/paper]
+
+What is copied, keeping the paths below results/<profile>/: the figures named in
+docs/paper_values.yaml (as palette PNGs at most 1400 px wide), every csv / md table of a target
+folder (results/<profile>/<folder>/*.{csv,md}), every record.json (any depth) and the report's
+provenance.json. Targets shown from a fallback profile (Table 1 / Fig. 3 from `cpu`) are copied
+into docs/results/<fallback>/ the same way. The report is then rebuilt from the copy, so that each
+number on the snapshot's page traces to a file of the snapshot."""
+import argparse
+import datetime
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from . import build, figures, model, paper, provenance
+
+LIMIT_MB = 10.0
+
+
+def _copy(src: Path, dst: Path) -> None:
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src, dst)
+
+
+def copy_results(src: Path, dst: Path, figure_paths) -> int:
+    """Tables, records and (compressed) figures of `src` into `dst`; returns the number of files."""
+    n = 0
+    for f in sorted(src.glob("*/*")):
+        if f.is_file() and f.suffix in (".csv", ".md") and f.parent.name != "report":
+            _copy(f, dst / f.relative_to(src))
+            n += 1
+    for f in sorted(src.rglob("record.json")):
+        _copy(f, dst / f.relative_to(src))
+        n += 1
+    for rel in figure_paths:
+        f = src / rel
+        if f.exists():
+            figures.compress_png(f, dst / rel) if f.suffix == ".png" else _copy(f, dst / rel)
+            n += 1
+    return n
+
+
+def size_mb(*folders) -> float:
+    return sum(p.stat().st_size for d in folders if Path(d).exists() for p in Path(d).rglob("*") if p.is_file()) / 2**20
+
+
+def largest(*folders, k: int = 8) -> list:
+    files = [p for d in folders if Path(d).exists() for p in Path(d).rglob("*") if p.is_file()]
+    return sorted(files, key=lambda p: -p.stat().st_size)[:k]
+
+
+def snapshot(profile: str, results, out) -> Path:
+    results, out = Path(results).resolve(), Path(out).resolve()
+    page = results / "report" / "index.html"
+    if not page.exists():
+        raise FileNotFoundError(f"{page}: no finished report; run `make report PROFILE={profile}` first")
+    entries = paper.targets()
+    rep = model.build(results, profile)
+    groups = {}  # (source folder, destination folder) -> figure paths
+    for t in rep.targets:
+        src = results.parent / t.profile if t.fallback else results
+        dst = out.parent / t.profile if t.fallback else out
+        groups.setdefault((src, dst), []).extend(entries[t.name].get("figures") or [])
+    for _, dst in groups:
+        if dst.exists():
+            shutil.rmtree(dst)
+    n = sum(copy_results(src, dst, figs) for (src, dst), figs in groups.items())
+    prov = json.loads((results / "report" / provenance.FILE).read_text()) \
+        if (results / "report" / provenance.FILE).exists() else provenance.collect(profile)
+    prov.update({"snapshot_date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+                 "snapshot_commit": provenance.commit()})
+    for _, dst in groups:
+        (dst / provenance.FILE).write_text(json.dumps(prov, indent=2) + "\n")
+    build.write(model.build(out, profile), out / "report", copy_figures=False)
+    total = size_mb(*{d for _, d in groups})
+    print(f"snapshot -> {out}: {n} files, {total:.2f} MB", flush=True)
+    if total > LIMIT_MB:
+        big = ", ".join(f"{p.relative_to(out.parent)} ({p.stat().st_size / 2**20:.2f} MB)" for p in largest(*{d for _, d in groups}))
+        raise RuntimeError(f"snapshot is {total:.1f} MB, above the {LIMIT_MB:g} MB limit; largest: {big}")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--results", default=None)
+    ap.add_argument("--out", default=None)
+    a = ap.parse_args(argv)
+    try:
+        snapshot(a.profile, a.results or f"results/{a.profile}", a.out or f"docs/results/{a.profile}")
+    except (FileNotFoundError, RuntimeError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,269 @@
+"""The reproduction at a glance (report/): `make report PROFILE=smoke` on smoke outputs of the
+smallest targets (Fig. 10 and the heat validation, ~40 s; every other target must then be listed as
+"not run"), the traces behind every number, `make -n all PROFILE=smoke` (dependency order and the
+time plan), `make snapshot`, the README tables from a snapshot, and the run-folder lock."""
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from report import fmt, paper, plan, readme_tables, snapshot
+from report.trace import Trace
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXTURES = ROOT / "tests" / "fixtures"
+RUN_TARGETS = ("fig10",)  # what the smoke fixture runs; every other target is "not run"
+
+
+def make(*args, check=True, timeout=900) -> subprocess.CompletedProcess:
+    out = subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True,
+                         timeout=timeout)
+    if check and out.returncode != 0:
+        raise AssertionError(f"make {' '.join(args)} failed ({out.returncode}):\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}")
+    return out
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    """results/smoke of the smallest targets (Fig. 10 + heat validation), then its report."""
+    results = tmp_path_factory.mktemp("results") / "smoke"
+    make("fig10", "PROFILE=smoke", f"RESULTS={results}")
+    make("report", "PROFILE=smoke", f"RESULTS={results}")
+    return results
+
+
+class Page(HTMLParser):
+    """Collects images, traced numbers, section ids and the text of non-label table cells that lies
+    outside traced numbers."""
+
+    def __init__(self):
+        super().__init__()
+        self.images, self.nums, self.ids, self.stack = [], [], set(), []
+        self.cell_text, self.in_cell, self.in_num, self.num_attrs, self.num_text = [], False, 0, None, ""
+        self.tags = set()
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.tags.add(tag)
+        if "id" in a:
+            self.ids.add(a["id"])
+        if tag == "img":
+            self.images.append(a["src"])
+        if tag == "td":
+            self.in_cell = "label" not in (a.get("class") or "")
+            self.cell_text.append("")
+        if tag == "span" and "num" in (a.get("class") or "").split():
+            self.in_num, self.num_attrs, self.num_text = 1, a, ""
+        elif tag == "span" and self.in_num:
+            self.in_num += 1
+
+    def handle_endtag(self, tag):
+        if tag == "td":
+            self.in_cell = False
+        if tag == "span" and self.in_num:
+            self.in_num -= 1
+            if not self.in_num:
+                self.nums.append((self.num_attrs, self.num_text))
+
+    def handle_data(self, data):
+        if self.in_num:
+            self.num_text += data
+        elif self.in_cell:
+            self.cell_text[-1] += data
+
+
+def parse(path) -> Page:
+    p = Page()
+    p.feed(Path(path).read_text())
+    p.close()
+    return p
+
+
+def shown(trace: Trace, text: str) -> str:
+    """What the page shows for `trace` (the number as the report formats it, with its unit)."""
+    v = trace.value()
+    if trace.display == "duration":
+        return fmt.duration(v)
+    unit = text.split(" ", 1)[1] if " " in text else ""
+    return fmt.number(v) + (f" {unit}" if unit else "")
+
+
+def as_float(text: str) -> float:
+    num, _, unit = text.partition(" ")
+    return float(num) * {"min": 60.0, "h": 3600.0}.get(unit, 1.0)
+
+
+# -- make report PROFILE=smoke -----------------------------------------------------------------------
+def test_page_parses_as_html_and_every_image_exists(smoke):
+    page = smoke / "report" / "index.html"
+    p = parse(page)
+    assert {"html", "head", "body", "title", "table", "img"} <= p.tags
+    assert p.images, "the smoke report shows Fig. 10's figures"
+    for src in p.images:
+        f = (page.parent / src).resolve()
+        assert f.is_file() and f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", src
+    assert (smoke / "report" / "report.md").stat().st_size > 0
+
+
+def test_every_target_appears_run_or_not_run(smoke):
+    p = parse(smoke / "report" / "index.html")
+    md = (smoke / "report" / "report.md").read_text()
+    html = (smoke / "report" / "index.html").read_text()
+    for name in paper.ALL_TARGETS:
+        assert name in p.ids, name
+        section = html.split(f'id="{name}"', 1)[1].split("<h2", 1)[0]
+        assert ("not run" in section) == (name not in RUN_TARGETS), name
+        assert f"`make {paper.targets()[name].get('make', name)} PROFILE=smoke`" in md
+    assert "Stability matrix" in html and "cheapest setting" in html and "Provenance" in html
+
+
+def test_every_number_traces_to_a_metrics_file_or_the_paper_values(smoke):
+    page = smoke / "report" / "index.html"
+    p = parse(page)
+    assert len(p.nums) >= 10
+    files = set()
+    for attrs, text in p.nums:
+        tr = Trace.from_json(attrs["data-src"], page.parent)
+        assert tr.file.exists(), tr.file
+        files.add(tr.file.name)
+        assert text == shown(tr, text), (text, attrs["data-src"])
+        assert as_float(text) == pytest.approx(tr.value() if tr.display != "duration" else as_float(fmt.duration(tr.value())),
+                                               rel=6e-3), text
+        assert tr.file.name in attrs["title"]  # the tooltip names the file
+    assert {"metrics.csv", "paper_values.yaml"} <= files
+    # no number on the page outside a traced span (label cells aside: names, settings)
+    for cell in p.cell_text:
+        assert not re.search(r"\d", cell), f"untraced number in a table cell: {cell!r}"
+
+
+def test_numbers_equal_the_metrics_read_independently(smoke):
+    """The shown numbers are the files' numbers: Fig. 10's largest temperature and the heat
+    operator's decay-rate error at the finest dx, read with pandas here."""
+    md = (smoke / "report" / "report.md").read_text()
+    ch = pd.read_csv(smoke / "fig10" / "metrics.csv").iloc[0]
+    assert f"| {fmt.number(ch['T_fluid_max'])}[^" in md
+    hv = pd.read_csv(smoke / "heat_validation" / "metrics.csv")
+    err = abs(hv.loc[hv["dx"].idxmin(), "decay_rate_relerr"]) * 100
+    assert f"| {fmt.number(err)} %[^" in md
+    notes = dict(re.findall(r"^\[\^(\d+)\]: (.+)$", md, re.M))
+    refs = set(re.findall(r"\[\^(\d+)\](?!:)", md))
+    assert refs and refs <= set(notes)
+    for n in refs:
+        path = notes[n].split(";")[0]
+        assert (ROOT / path).exists() or Path(path).exists(), notes[n]
+
+
+def test_a_target_without_outputs_has_no_numbers(smoke):
+    html = (smoke / "report" / "index.html").read_text()
+    section = html.split('id="fig9"', 1)[1].split("<h2", 1)[0]
+    assert 'class="num"' not in section and "<img" not in section
+
+
+# -- make all ----------------------------------------------------------------------------------------
+SCRIPTS = [("fig1", "gradcheck/run.py"), ("fig2", "inverse/run.py"), ("fig4", "experiments/tgv2d/plot_fig4.py"),
+           ("fig5", "experiments/tgv2d/plot_fig5.py"), ("fig6", "--fig fig6"), ("fig7", "--fig fig7"),
+           ("fig8", "experiments/dambreak2d/plot_fig8.py"), ("fig9", "experiments/tgv3d/plot_fig9.py"),
+           ("fig10", "experiments/thermal/plot_fig10.py"), ("table1", "sitl/table1.py"), ("fig3", "sitl/plot_fig3.py"),
+           ("stability", "experiments/stability/run.py"), ("accuracy", "experiments/accuracy/atlas.py"),
+           ("report", "-m report.build")]
+
+
+def test_make_all_dry_run_lists_every_target_in_dependency_order_after_the_plan(smoke):
+    out = make("-n", "all", "PROFILE=smoke", f"RESULTS={smoke}", timeout=300).stdout
+    plan_end = out.index("  total ")
+    first = [out.find(s, plan_end) for _, s in SCRIPTS]
+    assert all(i > 0 for i in first), [t for (t, _), i in zip(SCRIPTS, first) if i < 0]
+    assert first == sorted(first), "targets out of dependency order"
+    head = out[:plan_end]
+    rows = [re.match(r"\s+(\S+)\s+smoke\s+", line) for line in head.splitlines()]
+    assert [m.group(1) for m in rows if m] == list(paper.ALL_TARGETS)
+    assert re.search(r"fig10\s+smoke\s+[\d.]+ s\s+measured: ", head)  # the smoke fixture's own records
+    assert re.search(r"fig9\s+smoke\s+[\d.]+ \w+\s+estimate: ", head)
+    assert re.search(r"  total\s+[\d.]+ (s|min|h)", out)
+
+
+def test_plan_total_is_the_sum_of_its_rows(smoke):
+    rows = plan.plan_rows("smoke", smoke, paper.ALL_TARGETS)
+    assert all(sec is not None and sec > 0 for _, _, sec, _ in rows)
+    text = plan.render(rows, "smoke")
+    assert f"total" in text and fmt.duration(sum(r[2] for r in rows)) in text
+    paper_rows = {r[0]: r for r in plan.plan_rows("paper", smoke.parent / "paper", paper.ALL_TARGETS, "cpu")}
+    assert paper_rows["table1"][1] == "cpu" and paper_rows["fig9"][3].startswith("estimate")
+
+
+# -- make snapshot, make readme-tables ---------------------------------------------------------------
+def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path):
+    out = snapshot.snapshot("smoke", smoke, tmp_path / "docs" / "results" / "smoke")
+    assert snapshot.size_mb(out) <= snapshot.LIMIT_MB
+    assert (out / "provenance.json").exists() and (out / "fig10" / "metrics.csv").exists()
+    assert list(out.rglob("record.json"))
+    page = out / "report" / "index.html"
+    p = parse(page)
+    for src in p.images:
+        assert (page.parent / src).resolve().is_relative_to(out), src
+        assert (page.parent / src).exists()
+    for attrs, text in p.nums:
+        tr = Trace.from_json(attrs["data-src"], page.parent)
+        assert tr.file.is_relative_to(out) or tr.file.name == "paper_values.yaml", tr.file
+        assert text == shown(tr, text)
+
+
+def test_readme_tables_regenerate_the_fixture_readme_unchanged(tmp_path):
+    snap = FIXTURES / "snapshot" / "paper"
+    readme = FIXTURES / "readme" / "README.md"
+    text = readme.read_text()
+    assert set(readme_tables.markers(text)) == {"tgv2d", "table1", "atlas", "figures"}
+    assert readme_tables.regenerate(text, snap, readme) == text
+    # a number typed by hand into a marked table is put back to the record's
+    copy = tmp_path / "README.md"
+    copy.write_text(text.replace("| 13.3 % |", "| 12.0 % |"))
+    rc = readme_tables.main(["--snapshot", str(snap), "--readme", str(copy), "--check"])
+    assert rc == 1
+    fixed = readme_tables.regenerate(copy.read_text(), snap, readme)
+    assert fixed == text
+
+
+def test_readme_tables_unknown_marker_or_missing_source_is_an_error(tmp_path):
+    r = tmp_path / "README.md"
+    r.write_text("<!-- table:nonsense -->\n<!-- /table:nonsense -->\n")
+    assert readme_tables.main(["--snapshot", str(FIXTURES / "snapshot" / "paper"), "--readme", str(r)]) == 2
+    r.write_text("<!-- table:tgv2d -->\n<!-- /table:tgv2d -->\n")
+    assert readme_tables.main(["--snapshot", str(tmp_path / "none"), "--readme", str(r)]) == 2
+
+
+def test_the_readme_matches_its_snapshot():
+    """The README's marked tables are what the committed snapshot gives. Until a snapshot is
+    committed, the markers must name tables the generator knows (the fixture test above checks the
+    generation itself)."""
+    text = (ROOT / "README.md").read_text()
+    snap = ROOT / "docs" / "results" / "paper"
+    if snap.exists():
+        assert readme_tables.regenerate(text, snap, ROOT / "README.md") == text, "run `make readme-tables`"
+    known = set(readme_tables.tables(snap, ROOT / "README.md", "paper"))
+    assert set(readme_tables.markers(text)) <= known
+    assert text.count("<!-- table:") == text.count("<!-- /table:")
+
+
+# -- the run-folder lock -----------------------------------------------------------------------------
+def test_a_second_writer_waits_for_the_first_and_says_who_holds_the_folder(tmp_path):
+    code = ("import sys, time; from sph.harness.lock import folder_lock\n"
+            "with folder_lock(sys.argv[1]):\n"
+            "    print('start', time.time(), flush=True); time.sleep(float(sys.argv[2])); print('end', time.time(), flush=True)\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    a = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "run"), "1.5"], stdout=subprocess.PIPE, text=True, env=env)
+    time.sleep(0.5)
+    b = subprocess.run([sys.executable, "-c", code, str(tmp_path / "run"), "0"], capture_output=True, text=True, env=env,
+                       timeout=60)
+    out_a = a.communicate(timeout=60)[0]
+    end_a = float(re.search(r"end (\S+)", out_a).group(1))
+    start_b = float(re.search(r"start (\S+)", b.stdout).group(1))
+    assert start_b >= end_a
+    assert f"pid {a.pid}" in b.stdout and "waiting" in b.stdout
+    assert (tmp_path / "run" / ".run.lock").exists()
