@@ -123,24 +123,28 @@ def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0, segments: i
             refused = refused | jax.lax.stop_gradient(guard.reject(state))
         return (state, nbrs, overflow | nbrs.did_buffer_overflow.astype(bool), refused), None
 
+    carry = (state, nbrs, jnp.zeros((), bool), jnp.zeros((), bool))
+    state, nbrs, overflow, refused = _scan_segments(body, carry, n_steps, segments)
+    return (state, nbrs, overflow, refused) if split else (state, nbrs, overflow | refused)
+
+
+def _scan_segments(body, carry, n_steps: int, segments: int):
+    """The carry after scanning `body` over the step numbers 0 .. n_steps-1: in one scan, or, with
+    0 < segments < n_steps, in segments of ceil(n_steps / segments) steps, each under `jax.checkpoint`
+    (the backward pass keeps one carry per segment and recomputes the steps inside it)."""
+
     def run(carry, ks):
         return jax.lax.scan(body, carry, ks)[0], None
 
-    def out(carry):
-        state, nbrs, overflow, refused = carry
-        return (state, nbrs, overflow, refused) if split else (state, nbrs, overflow | refused)
-
-    carry = (state, nbrs, jnp.zeros((), bool), jnp.zeros((), bool))
     if segments <= 0 or segments >= n_steps:
-        carry, _ = run(carry, jnp.arange(n_steps))
-        return out(carry)
+        return run(carry, jnp.arange(n_steps))[0]
     seg = -(-n_steps // segments)
     full = n_steps // seg
     run_ckpt = jax.checkpoint(run)
     carry, _ = jax.lax.scan(run_ckpt, carry, jnp.arange(full * seg).reshape(full, seg))
     if full * seg < n_steps:
         carry, _ = run_ckpt(carry, jnp.arange(full * seg, n_steps))
-    return out(carry)
+    return carry
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -271,61 +275,83 @@ def value_and_grad_rollout(loss_fn, solver, n_steps: int, initial_state=None, st
     the start. More than `max_reallocations` re-allocations raise a RuntimeError.
     """
     if initial_state is None:
-        u0 = jnp.asarray(solver.scene.u, solver.dtype)
-
-        def initial_state(r, nbrs):
-            return solver.state_at(r, u0, nbrs)
-
+        initial_state = _start_with_scene_velocities(solver)
     objective = rollout_objective(loss_fn, initial_state, solver.step_fn, solver.neighbors, n_steps,
                                   step0=step0, segments=segments, has_aux=has_aux, remat_steps=remat_steps)
     value_and_grad = jax.jit(jax.value_and_grad(objective, has_aux=True))
     start = jax.jit(initial_state)
-    compiled = {}
-
-    def sizing_fns():
-        if not compiled:
-            compiled["chunk"] = jax.jit(make_chunk(solver.step_fn, n_steps))
-            compiled["next"] = jax.jit(lambda s, nb, k: solver.step_fn(s, nb, k)[0].r)
-        return compiled["chunk"], compiled["next"]
-
-    guard = getattr(solver.step_fn, "guard", None)
-
-    def _refused(params, nbrs):
-        """The guard refused a step of the differentiated rollout: find and name it (forward pass)."""
-        state0 = start(params, nbrs)
-        chunk = jax.jit(make_chunk(solver.step_fn, n_steps, guard=guard))
-        try:
-            advance(chunk, solver.neighbors, state0, solver.neighbors.allocate(state0.r), step0, n_steps)
-        except RuntimeError as e:
-            err = type(e)(f"value_and_grad_rollout: no gradient for this rollout: {e}")
-            err.__dict__.update(e.__dict__)
-            return err
-        return RuntimeError("value_and_grad_rollout: the step guard refused a step of the differentiated rollout "
-                            "but not of the forward pass (round-off at the domain edge?); no gradient returned")
+    sizer = _ListSizer(solver, n_steps, step0)
 
     def run(params, nbrs=None):
         reallocs = 0
         if nbrs is None:
-            # the positions do not depend on the list: build the state with any list, then allocate
-            r0 = start(params, solver.neighbors.allocate(jnp.asarray(solver.scene.r, solver.dtype))).r
-            nbrs = solver.neighbors.allocate(r0)
+            nbrs = _list_at_start(solver, start, params)
         while True:
             (loss, (aux, invalid)), grad = value_and_grad(params, nbrs)
             if not int(invalid):
                 return RolloutGradient(loss, grad, aux, nbrs, reallocs)
             if int(invalid) & 2:
-                raise _refused(params, nbrs)
+                raise _refused(solver, start(params, nbrs), n_steps, step0)
             if reallocs >= max_reallocations:
                 raise RuntimeError(
                     f"value_and_grad_rollout: the neighbour list still overflowed (or was stale at the "
                     f"initial positions) after {reallocs} re-allocations (capacity {_capacity(nbrs)} "
                     f"(slots, cell slots), {n_steps} steps); raise max_reallocations or the capacity")
             state0 = start(params, nbrs)  # positions only; the list is rebuilt at them below
-            chunk, next_positions = sizing_fns()
-            floor = tuple(c + 1 for c in _capacity(nbrs))  # the last list was too small somewhere
-            cap, n = size_list(solver.step_fn, solver.neighbors, state0, n_steps, step0, floor,
-                               max_reallocations - reallocs - 1, chunk, next_positions)
+            nbrs, n = sizer.covering_list(state0, nbrs, max_reallocations - reallocs - 1)
             reallocs += 1 + n
-            nbrs = allocate_covering(solver.neighbors, state0.r, cap)
 
     return run
+
+
+def _list_at_start(solver, start, params):
+    """A list allocated at the initial positions start(params, .).r; they do not depend on the list,
+    so the state is built with any list (one at the scene's positions) first."""
+    r0 = start(params, solver.neighbors.allocate(jnp.asarray(solver.scene.r, solver.dtype))).r
+    return solver.neighbors.allocate(r0)
+
+
+def _start_with_scene_velocities(solver):
+    """initial_state(r, nbrs): the state at positions r with the scene's velocities."""
+    u0 = jnp.asarray(solver.scene.u, solver.dtype)
+
+    def initial_state(r, nbrs):
+        return solver.state_at(r, u0, nbrs)
+
+    return initial_state
+
+
+class _ListSizer:
+    """Lists that cover a whole rollout of `n_steps` from `step0` (`size_list`), with the forward
+    chunk and step it needs jitted once, on first use."""
+
+    def __init__(self, solver, n_steps: int, step0: int):
+        self.solver, self.n_steps, self.step0 = solver, n_steps, step0
+        self.chunk = self.next_positions = None
+
+    def covering_list(self, state0, nbrs, max_reallocations: int):
+        """(a list at state0.r larger than `nbrs` and covering the rollout from state0, the
+        re-allocations the sizing pass took)."""
+        step_fn = self.solver.step_fn
+        if self.chunk is None:
+            self.chunk = jax.jit(make_chunk(step_fn, self.n_steps))
+            self.next_positions = jax.jit(lambda s, nb, k: step_fn(s, nb, k)[0].r)
+        floor = tuple(c + 1 for c in _capacity(nbrs))  # the last list was too small somewhere
+        cap, n = size_list(step_fn, self.solver.neighbors, state0, self.n_steps, self.step0, floor,
+                           max_reallocations, self.chunk, self.next_positions)
+        return allocate_covering(self.solver.neighbors, state0.r, cap), n
+
+
+def _refused(solver, state0, n_steps: int, step0: int) -> RuntimeError:
+    """The guard refused a step of the differentiated rollout from `state0`: find and name it (forward
+    pass with the guard, `advance`)."""
+    guard = getattr(solver.step_fn, "guard", None)
+    chunk = jax.jit(make_chunk(solver.step_fn, n_steps, guard=guard))
+    try:
+        advance(chunk, solver.neighbors, state0, solver.neighbors.allocate(state0.r), step0, n_steps)
+    except RuntimeError as e:
+        err = type(e)(f"value_and_grad_rollout: no gradient for this rollout: {e}")
+        err.__dict__.update(e.__dict__)
+        return err
+    return RuntimeError("value_and_grad_rollout: the step guard refused a step of the differentiated rollout "
+                        "but not of the forward pass (round-off at the domain edge?); no gradient returned")

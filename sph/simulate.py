@@ -22,8 +22,9 @@ located by bisecting the chunk from its last good state. The writer keeps the la
 its checkpoint, and the message says where.
 
 Particle order (`reorder_every`, default numerics.reorder_every; `sph.reorder`): every that many
-steps (at the next frame) the fluid particles are sorted by cell among their slots and the
-neighbour list is rebuilt, so that the gathers of the pair sums stay local as the flow mixes the
+steps (at the next frame), and before the first chunk of a resumed run (whose checkpoint is in the
+scene's order), the fluid particles are sorted by cell among their slots and the neighbour list is
+rebuilt, so that the gathers of the pair sums stay local as the flow mixes the
 particles. Everything the run hands out (frames, checkpoints, callbacks, the returned state and
 list) is in the scene's order; the permuted state lives only between the chunks. A chunk that fails
 in a permuted order is retried from its start in the scene's order, so that every diagnosis names
@@ -128,125 +129,188 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     `reorder_every`: sort the particles by cell every that many steps (None: numerics.reorder_every;
     0: never); results equal the unsorted run's to round-off (the pair sums' order changes).
     """
+    n_total, u_limit, reorder_every = _checked(solver, t_end, write_every, step0, n_steps, u_limit, reorder_every)
+    session = _Session(solver, write_every, writer, u_limit, reorder_every, max_reallocations)
+    session.begin(state, nbrs, step0, n_total)
+    bar = tqdm(total=n_total, initial=step0, disable=not progress, desc=desc, unit="step",
+               mininterval=2.0, dynamic_ncols=True)
+    try:
+        while session.step < n_total:
+            n = min(write_every, n_total - session.step)
+            d = session.advance(n)
+            if d is None:  # failed in a permuted order: retried from the chunk's start in the scene's order
+                continue
+            bar.update(n)
+            bar.set_postfix(t=f"{session.step * solver.dt:.3g}", u_max=f"{d['u_max']:.4g}", refresh=False)
+            if callback is not None:
+                callback(session.step, session.step * solver.dt, session.scene_state())
+    finally:
+        bar.close()
+    return session.result(step0)
+
+
+def _checked(solver, t_end, write_every, step0, n_steps, u_limit, reorder_every) -> tuple:
+    """(n_total, u_limit, reorder_every) of `run`, defaults filled in; a ValueError for a bad one."""
     if write_every < 1:
         raise ValueError(f"write_every must be >= 1, got {write_every}")
     n_total = solver.n_steps(t_end) if n_steps is None else int(n_steps)
     if not 0 <= step0 <= n_total:
         raise ValueError(f"step0={step0} is outside [0, {n_total}]")
-    dt = solver.dt
-    rho_ref = solver.scene.material.rho_ref
-    if u_limit is None:
-        u_limit = solver.c_ref
-    guard = solver.guard.with_limit(u_limit) if solver.guard is not None else None
-    chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
     if reorder_every is None:
         reorder_every = solver.numerics.reorder_every
     if reorder_every < 0:
         raise ValueError(f"reorder_every must be >= 0, got {reorder_every}")
-    movable = reorder.movable_mask(solver.scene) if reorder_every else None
-    rebuild = _CompiledChunk(jax.jit(solver.neighbors.update)) if reorder_every else None
-    order, since, n_reorders = None, 0, 0  # order[i]: the scene's number of the particle in slot i
-    diag_fn = jax.jit(partial(diagnostics.summary, rho_ref=rho_ref))
+    return n_total, solver.c_ref if u_limit is None else u_limit, reorder_every
 
-    frames = {k: [] for k in SERIES}
-    wall_prev, realloc_prev = 0.0, 0
-    if writer is not None and step0 > 0:
-        old = writer.frames()
+
+class _Session:
+    """One call of `run`: the jitted chunk, list rebuild and diagnostics; the current state, list
+    and step; the frames recorded (with those of earlier sessions); the particle order; the timings."""
+
+    def __init__(self, solver, write_every: int, writer, u_limit: float, reorder_every: int,
+                 max_reallocations: int):
+        self.solver, self.write_every, self.writer = solver, write_every, writer
+        self.u_limit, self.reorder_every, self.max_reallocations = u_limit, reorder_every, max_reallocations
+        guard = solver.guard.with_limit(u_limit) if solver.guard is not None else None
+        self.chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
+        self.movable = reorder.movable_mask(solver.scene) if reorder_every else None
+        self.rebuild = _CompiledChunk(jax.jit(solver.neighbors.update)) if reorder_every else None
+        self.diag_fn = jax.jit(partial(diagnostics.summary, rho_ref=solver.scene.material.rho_ref))
+        self.frames = {k: [] for k in SERIES}
+        self.wall_prev, self.realloc_prev = 0.0, 0  # of the earlier sessions of a resumed run
+        self.wall, self.reallocs, self.n_reorders, self.diag_compile_s = 0.0, 0, 0, 0.0
+        self.order, self.since = None, 0  # order[i]: the scene's number of the particle in slot i
+        self.state = self.nbrs = None
+        self.step = 0
+
+    @property
+    def compile_s(self) -> float:
+        """Compilation time so far: diagnostics, chunk and list rebuild."""
+        rebuild_s = self.rebuild.compile_s if self.rebuild is not None else 0.0
+        return self.diag_compile_s + self.chunk.compile_s + rebuild_s
+
+    def begin(self, state, nbrs, step0: int, n_total: int):
+        """Start at `state` (the scene's order) at global step `step0`: the earlier frames read back,
+        the initial state checked and recorded, everything compiled before the first chunk."""
+        self.state, self.nbrs, self.step = state, nbrs, step0
+        # a resumed state is in the scene's order, not sorted: reorder before the first chunk
+        self.since = self.reorder_every if step0 > 0 else 0
+        self._read_earlier_frames(step0)
+        t0 = time.perf_counter()
+        self.diag_fn.lower(state).compile()
+        self.diag_compile_s = time.perf_counter() - t0
+        d0 = self._diagnostics(state)
+        if d0["first_nonfinite"] >= 0:
+            i = int(d0["first_nonfinite"])
+            raise RuntimeError(f"the state at step {step0} (t={step0 * self.solver.dt:.6g}) is not finite: "
+                               f"particle {i} has non-finite {diagnostics.nonfinite_fields(state, i)}")
+        if step0 == 0 and (self.writer is None or self.writer.n_frames == 0):
+            self.record(state, 0, d0)
+        elif not self.frames["step"]:
+            self._append_frame(step0, d0)
+        # Compile without advancing: lower + compile fills the cache that the calls hit.
+        if step0 < n_total:
+            self.chunk.compile(state, nbrs, step0, min(self.write_every, n_total - step0))
+            if self.rebuild is not None:
+                self.rebuild.compile(state.r, nbrs)
+
+    def _read_earlier_frames(self, step0: int):
+        """A resumed run (`step0 > 0`) with a writer: its frames up to step0, and the wall time and
+        re-allocations of the earlier sessions where the checkpoint is the one at step0."""
+        if self.writer is None or step0 <= 0:
+            return
+        old = self.writer.frames()
         keep = old["step"] <= step0
         for k in SERIES:
-            frames[k] = list(old[k][keep])
-        if writer.has_checkpoint():
-            _, ck_step, attrs = writer.load_checkpoint()
+            self.frames[k] = list(old[k][keep])
+        if self.writer.has_checkpoint():
+            _, ck_step, attrs = self.writer.load_checkpoint()
             if ck_step == step0:
-                wall_prev = float(attrs.get("wall_s", 0.0))
-                realloc_prev = int(attrs.get("n_reallocations", 0))
+                self.wall_prev = float(attrs.get("wall_s", 0.0))
+                self.realloc_prev = int(attrs.get("n_reallocations", 0))
 
-    t0 = time.perf_counter()
-    diag_fn.lower(state).compile()
-    compile_s = time.perf_counter() - t0
-    wall, reallocs = 0.0, 0
+    def _diagnostics(self, state) -> dict:
+        return {k: v.item() for k, v in self.diag_fn(state).items()}
 
-    def record(state, step, d):
-        t = step * dt
-        for k, v in (("time", t), ("step", step), ("u_max", d["u_max"]), ("e_kin", d["e_kin"]),
-                     ("density_error", d["density_error"])):
-            frames[k].append(v)
-        state = reorder.restore(state, order)
-        if writer is not None:
-            writer.append(state, step, t, d)
-            writer.save_checkpoint(state, step, t, wall_s=wall_prev + wall,
-                                   n_reallocations=realloc_prev + reallocs)
+    def _append_frame(self, step: int, d: dict):
+        for k, v in (("time", step * self.solver.dt), ("step", step), ("u_max", d["u_max"]),
+                     ("e_kin", d["e_kin"]), ("density_error", d["density_error"])):
+            self.frames[k].append(v)
 
-    d0 = {k: v.item() for k, v in diag_fn(state).items()}
-    if d0["first_nonfinite"] >= 0:
-        i = int(d0["first_nonfinite"])
-        raise RuntimeError(f"the state at step {step0} (t={step0 * dt:.6g}) is not finite: particle {i} "
-                           f"has non-finite {diagnostics.nonfinite_fields(state, i)}")
-    if step0 == 0 and (writer is None or writer.n_frames == 0):
-        record(state, 0, d0)
-    elif not frames["step"]:
-        for k, v in (("time", step0 * dt), ("step", step0), ("u_max", d0["u_max"]), ("e_kin", d0["e_kin"]),
-                     ("density_error", d0["density_error"])):
-            frames[k].append(v)
+    def record(self, state, step: int, d: dict):
+        """The frame after `step` (diagnostics `d`); with a writer, also its positions and fields and
+        the checkpoint, in the scene's order."""
+        self._append_frame(step, d)
+        if self.writer is not None:
+            state, t = reorder.restore(state, self.order), step * self.solver.dt
+            self.writer.append(state, step, t, d)
+            self.writer.save_checkpoint(state, step, t, wall_s=self.wall_prev + self.wall,
+                                        n_reallocations=self.realloc_prev + self.reallocs)
 
-    # Compile without advancing: lower + compile fills the cache that the calls below hit.
-    if step0 < n_total:
-        chunk.compile(state, nbrs, step0, min(write_every, n_total - step0))
-        if rebuild is not None:
-            rebuild.compile(state.r, nbrs)
-    compile_s += chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0)
-    chunk.compile_s = 0.0
+    def scene_state(self):
+        """The current state in the scene's order."""
+        return reorder.restore(self.state, self.order)
 
-    step = step0
-    bar = tqdm(total=n_total, initial=step0, disable=not progress, desc=desc, unit="step",
-               mininterval=2.0, dynamic_ncols=True)
-    try:
-        while step < n_total:
-            n = min(write_every, n_total - step)
-            t0, c0 = time.perf_counter(), chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0)
-            if reorder_every and since >= reorder_every:
-                perm = reorder.cell_permutation(state.r, movable, solver.scene.dx)
-                state, order = reorder.permute(state, perm), reorder.compose(order, perm)
-                nbrs = _rebuilt(solver.neighbors, rebuild, state.r, nbrs)
-                since, n_reorders = 0, n_reorders + 1
-            try:
-                new_state, new_nbrs, r = advance(chunk, solver.neighbors, state, nbrs, step, n, max_reallocations)
-                jax.block_until_ready(new_state)
-                d = {k: v.item() for k, v in diag_fn(new_state).items()}
-                bad, error = _is_bad(d, u_limit), None
-            except SimulationError as e:  # the guard refused a step (diagnosed), or overflow kept recurring
-                if order is not None:
-                    bad, error = True, e
-                else:
-                    raise _with_checkpoint(e, solver, step, writer) from None
-            except RuntimeError as e:  # repeated neighbour overflow without a guard
-                bad, error = True, e
-            wall += time.perf_counter() - t0 - (chunk.compile_s + (rebuild.compile_s if rebuild is not None else 0.0) - c0)
-            if bad and order is not None:  # retry from the chunk's start in the scene's order (diagnoses name
-                state, order, since = reorder.restore(state, order), None, 0  # the scene's particles)
-                nbrs = solver.neighbors.allocate(state.r)
-                continue
-            if bad:
-                raise _locate_blowup(solver, chunk, diag_fn, state, nbrs, step, n, writer, error, u_limit)
-            reallocs += r
-            state, nbrs, step, since = new_state, new_nbrs, step + n, since + n
-            record(state, step, d)
-            bar.update(n)
-            bar.set_postfix(t=f"{step * dt:.3g}", u_max=f"{d['u_max']:.4g}", refresh=False)
-            if callback is not None:
-                callback(step, step * dt, reorder.restore(state, order))
-    finally:
-        bar.close()
-    if order is not None:
-        state = reorder.restore(state, order)
-        nbrs = _rebuilt(solver.neighbors, rebuild, state.r, nbrs)
+    def advance(self, n: int) -> Optional[dict]:
+        """Take the next `n` steps (sorting the particles first when due) and record their frame;
+        returns its diagnostics, or None when the chunk failed in a permuted order (then it is to be
+        retried from its start in the scene's order, so that the diagnosis names the scene's
+        particles). A failure in the scene's order raises, located and diagnosed."""
+        t0, c0 = time.perf_counter(), self.compile_s
+        self._reorder_if_due()
+        done, error = self._try_chunk(n)
+        self.wall += time.perf_counter() - t0 - (self.compile_s - c0)
+        if done is None or _is_bad(done[3], self.u_limit):
+            if self.order is not None:
+                self.state, self.order, self.since = reorder.restore(self.state, self.order), None, 0
+                self.nbrs = self.solver.neighbors.allocate(self.state.r)
+                return None
+            raise _locate_blowup(self.solver, self.chunk, self.diag_fn, self.state, self.nbrs, self.step, n,
+                                 self.writer, error, self.u_limit)
+        self.state, self.nbrs, r, d = done
+        self.reallocs += r
+        self.step, self.since = self.step + n, self.since + n
+        self.record(self.state, self.step, d)
+        return d
 
-    arrays = {k: np.asarray(v) for k, v in frames.items()}
-    return RunResult(t=arrays["time"], step=arrays["step"].astype(np.int64), u_max=arrays["u_max"],
-                     e_kin=arrays["e_kin"], density_error=arrays["density_error"], wall_s=wall,
-                     compile_s=compile_s + chunk.compile_s, n_steps=step - step0, n_reallocations=reallocs,
-                     wall_s_total=wall_prev + wall, n_reallocations_total=realloc_prev + reallocs,
-                     step_end=step, write_every=write_every, state=state, nbrs=nbrs, n_reorders=n_reorders)
+    def _reorder_if_due(self):
+        """Sort the fluid particles by cell and rebuild the list, when `reorder_every` steps have
+        passed since the last sort (or the run resumed)."""
+        if self.reorder_every and self.since >= self.reorder_every:
+            perm = reorder.cell_permutation(self.state.r, self.movable, self.solver.scene.dx)
+            self.state, self.order = reorder.permute(self.state, perm), reorder.compose(self.order, perm)
+            self.nbrs = _rebuilt(self.solver.neighbors, self.rebuild, self.state.r, self.nbrs)
+            self.since, self.n_reorders = 0, self.n_reorders + 1
+
+    def _try_chunk(self, n: int):
+        """((state, nbrs, re-allocations, diagnostics), None) after `n` steps, or (None, error) when the
+        guard refused a step in a permuted order or the list kept overflowing; a guard's refusal in
+        the scene's order is raised at once, naming where the last good frame is kept."""
+        try:
+            state, nbrs, r = advance(self.chunk, self.solver.neighbors, self.state, self.nbrs, self.step, n,
+                                     self.max_reallocations)
+            jax.block_until_ready(state)
+            return (state, nbrs, r, self._diagnostics(state)), None
+        except SimulationError as e:  # the guard refused a step (diagnosed), or overflow kept recurring
+            if self.order is None:
+                raise _with_checkpoint(e, self.solver, self.step, self.writer) from None
+            return None, e
+        except RuntimeError as e:  # repeated neighbour overflow without a guard
+            return None, e
+
+    def result(self, step0: int) -> RunResult:
+        """The run's frames and timings, its state and list back in the scene's order."""
+        state, nbrs = self.state, self.nbrs
+        if self.order is not None:
+            state = reorder.restore(state, self.order)
+            nbrs = _rebuilt(self.solver.neighbors, self.rebuild, state.r, nbrs)
+        arrays = {k: np.asarray(v) for k, v in self.frames.items()}
+        return RunResult(t=arrays["time"], step=arrays["step"].astype(np.int64), u_max=arrays["u_max"],
+                         e_kin=arrays["e_kin"], density_error=arrays["density_error"], wall_s=self.wall,
+                         compile_s=self.compile_s, n_steps=self.step - step0, n_reallocations=self.reallocs,
+                         wall_s_total=self.wall_prev + self.wall,
+                         n_reallocations_total=self.realloc_prev + self.reallocs, step_end=self.step,
+                         write_every=self.write_every, state=state, nbrs=nbrs, n_reorders=self.n_reorders)
 
 
 def _rebuilt(neighbors, rebuild, r, nbrs):

@@ -5,6 +5,7 @@
 - a run that reorders every few steps gives the run that never does, to round-off, in the scene's
   order: frames, written positions, final state (periodic TGV with TVF, and the walled cavity whose
   fluid particles start shuffled);
+- a resumed run reorders before its first chunk (its checkpoint is in the scene's order);
 - a run that fails after reordering names the same step and particle (scene numbering) and hands
   back the same last good state as the run that never reorders.
 """
@@ -92,6 +93,24 @@ def test_reordered_run_equals_unreordered(case, tmp_path):
     a, _ = solver.step_fn(sorted_.state, sorted_.nbrs, 61)
     b, _ = solver.step_fn(sorted_.state, solver.neighbors.allocate(sorted_.state.r), 61)
     np.testing.assert_allclose(np.asarray(a.u), np.asarray(b.u), atol=1e-12)
+
+
+def test_resumed_run_reorders_at_once(tmp_path):
+    """A run resumed from its checkpoint (stored in the scene's order) sorts the particles before its
+    first chunk, not `reorder_every` steps later, and still ends where the uninterrupted run ends."""
+    scene = _shuffled(ldc.scene(0.05, MAT, sph.Effects(walls="no_slip")))
+    numerics = sph.Numerics(dtype="float64")
+    plain = _run(scene, numerics, 40, 5, 0)
+    _run(scene, numerics, 20, 5, 10, tmp_path / "part.h5")
+    solver = sph.build_solver(scene, numerics)
+    with io.TrajectoryWriter.open(tmp_path / "part.h5") as w:
+        state, nbrs, step = simulate.resume(solver, w)
+        assert step == 20
+        resumed = simulate.run(solver, state, nbrs, t_end=0.0, n_steps=40, write_every=5, writer=w,
+                               progress=False, step0=step, reorder_every=10)
+    assert resumed.n_reorders == 2  # before the chunks at steps 20 and 30 (only at 30 before the fix)
+    np.testing.assert_allclose(np.asarray(resumed.state.r), np.asarray(plain.state.r), atol=1e-10)
+    np.testing.assert_allclose(resumed.e_kin, plain.e_kin, rtol=1e-11)
 
 
 def test_failure_after_reordering_names_the_scene_particle():
