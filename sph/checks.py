@@ -7,8 +7,10 @@ own image), a walled box too small to hold walls and fluid, walls thinner than t
 """
 import math
 import warnings
+from dataclasses import dataclass
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .config import Numerics
@@ -70,6 +72,24 @@ def check_memory(n: int, dim: int, slots: int, itemsize: int, where: str, dx: fl
     return need
 
 
+def _round_down(x: float, digits: int = 4) -> str:
+    """x rounded down to `digits` significant digits: a suggested bound that itself passes."""
+    scale = 10 ** (digits - 1 - math.floor(math.log10(x)))
+    return f"{math.floor(x * scale) / scale:g}"
+
+
+def _coarsest_walled_dx(side: float, fluid_d, dx: float, cutoff: float) -> str:
+    """The largest dx whose walled box holds two supports of walls and one of fluid, for a box that
+    is built as L + 2 layers dx (the wall layers shrink with dx): L + 2 l dx >= 3 s dx, with the
+    support s = cutoff / dx, the layers l and the fluid span L read off this scene."""
+    layers = max(int(round((float(np.min(fluid_d)) - 0.5 * dx) / dx)), 0)
+    span = side - 2 * layers * dx
+    s = cutoff / dx
+    if 3 * s - 2 * layers <= 0 or span <= 0:
+        return "use more wall layers or a finer dx"
+    return f"use dx <= {_round_down(span / (3 * s - 2 * layers))} (with {layers} wall layers around a span of {span:g})"
+
+
 def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numerics) -> None:
     """Named ConfigErrors for a scene the kernel cannot resolve (see the module docstring):
 
@@ -93,7 +113,7 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
             raise ConfigError(
                 f"{where}: dx = {dx:g} is too coarse: the periodic side {d} of length {side:g} is shorter than twice "
                 f"{support}, so a particle would interact with its own periodic image; use dx <= "
-                f"{side / (2 * cutoff / dx):.4g} (at least {math.ceil(2 * cutoff / dx)} particles across)")
+                f"{_round_down(side / (2 * cutoff / dx))} (at least {math.ceil(2 * cutoff / dx)} particles across)")
     fluid = scene.r[scene.fluid_mask]
     if scene.effects.walls is not None:
         for d in range(scene.dim):
@@ -103,7 +123,7 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
                 raise ConfigError(
                     f"{where}: dx = {dx:g} is too coarse: the walled box is {box[d]:g} wide in dimension {d}, less "
                     f"than two wall layers of {support} plus one support of fluid between them ({3 * cutoff:g}); "
-                    f"the fluid cannot be resolved: use dx <= {dx * box[d] / (3 * cutoff):.4g}")
+                    f"the fluid cannot be resolved: {_coarsest_walled_dx(box[d], fluid[:, d], dx, cutoff)}")
             gap = np.minimum(fluid[:, d], box[d] - fluid[:, d])
             i = int(np.argmin(gap))
             if gap[i] < cutoff * (1 - 1e-6):
@@ -125,3 +145,61 @@ def warn_fixed_dt(scene: Scene, dt: float, limits: dict) -> None:
             f"{dt / over[k]:.3g}x (limits: " + ", ".join(f"{n} {v:.3g}" for n, v in limits.items() if n != "dt")
             + "); the run is likely to blow up (it is stopped at the first bad step): lower numerics.dt or "
             "set it to null", UnstableTimeStep, stacklevel=3)
+
+
+MIN_NEIGHBOURS = {1: 2, 2: 8, 3: 18}
+"""Fewest neighbours within the kernel support a typical fluid particle may have: its first lattice
+shell (2D: 4 sides + 4 diagonals; 3D: 6 faces + 12 edges). Below that the SPH sums are no longer
+approximations of integrals (a quintic kernel at h = dx has ~28 in 2D, ~110 in 3D)."""
+SPACING_RANGE = (0.5, 1.6)
+"""Allowed median nearest-neighbour distance of the fluid particles, in units of scene.dx: a lattice
+gives 1, a relaxed or jittered one 0.85-1; outside, the particles were made for another dx."""
+
+
+@dataclass(frozen=True)
+class Spacing:
+    """A pass term: per particle its nearest neighbour's distance and index, and the number of
+    neighbours within the kernel support `cutoff` (for `check_spacing`)."""
+
+    cutoff: float
+
+    def __call__(self, pp, i, j):
+        d = jnp.where(pp.mask, pp.d, jnp.inf)
+        k = jnp.argmin(d, axis=-1, keepdims=True)
+        count = jnp.sum(pp.mask & (pp.d < self.cutoff), axis=-1, keepdims=True)
+        return jnp.take_along_axis(d, k, -1), jnp.take_along_axis(pp.j, k, -1), count
+
+
+def check_spacing(scene: Scene, nearest, nearest_j, count, cutoff: float, numerics: Numerics) -> None:
+    """Named ConfigErrors, before a step is taken, for particles the step cannot treat:
+    coincident particles (a pair closer than 1e-3 dx: r_ij = 0 makes every pair term singular), a
+    spacing that disagrees with scene.dx (masses m = rho_ref dx^dim would give a density off by
+    (spacing / dx)^dim: initial positions made for another resolution), and a kernel support that
+    holds fewer than MIN_NEIGHBOURS neighbours of a typical fluid particle (h_factor too small).
+    Typical = the median over the fluid particles that have a neighbour in the list; a scene with
+    fewer such particles than 4 MIN_NEIGHBOURS (a single particle thrown at a wall) is legitimate
+    physics, resolved or not, and only checked for coincident particles."""
+    dx, where = scene.dx, f"scene {scene.name}"
+    nearest, nearest_j, count = (np.asarray(x) for x in (nearest, nearest_j, count))
+    i = int(np.argmin(nearest))
+    if nearest[i] < 1e-3 * dx:
+        raise ConfigError(
+            f"{where}: particles {i} and {int(nearest_j[i])} coincide (distance {nearest[i]:.3g} < 1e-3 dx, at "
+            f"{np.round(scene.r[i], 6).tolist()}): every pair term is singular there; remove the duplicate")
+    fluid = scene.fluid_mask & np.isfinite(nearest)   # particles alone in their list (a jet, a drop) aside
+    if fluid.sum() < 4 * MIN_NEIGHBOURS[scene.dim]:
+        return                                        # too few to have an interior: nothing typical to check
+    spacing = float(np.median(nearest[fluid]))
+    lo, hi = SPACING_RANGE
+    if not lo * dx <= spacing <= hi * dx:
+        raise ConfigError(
+            f"{where}: the fluid particles' spacing (median nearest-neighbour distance {spacing:.4g}) is "
+            f"{spacing / dx:.3g} dx for scene.dx = {dx:g}: the particles were made for another resolution "
+            f"(masses rho_ref dx^dim would put the density near {(dx / spacing) ** scene.dim:.3g} rho_ref); "
+            f"set dx = {spacing:.4g} or rebuild the positions for dx = {dx:g}")
+    typical, need = float(np.median(count[fluid])), MIN_NEIGHBOURS[scene.dim]
+    if typical < need:
+        raise ConfigError(
+            f"numerics.h_factor: {numerics.h_factor:g} gives a kernel support of {cutoff / dx:.3g} dx with "
+            f"{typical:.0f} neighbours per fluid particle (median), fewer than {need} (the first lattice shell): "
+            f"the SPH sums are not resolved; raise numerics.h_factor")

@@ -3,6 +3,7 @@
 A scene is checked on construction against the effects it declares, so that a scene asking for an
 effect without what that effect needs fails at load with a message naming the missing piece.
 """
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -43,6 +44,8 @@ class Scene:
     T_zones: tuple = ()
 
     def __post_init__(self):
+        if not (isinstance(self.dx, (int, float, np.floating)) and math.isfinite(self.dx) and self.dx > 0):
+            raise ConfigError(f"scene {self.name}: dx must be a positive number, got {self.dx!r}")
         n, dim = self.r.shape
         if dim != self.domain.dim:
             raise ConfigError(f"scene {self.name}: positions are {dim}D but the domain is {self.domain.dim}D")

@@ -19,7 +19,8 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from .checks import InsufficientMemory, UnstableTimeStep, check_memory, check_resolution, neighbour_slots, warn_fixed_dt  # noqa: F401
+from .checks import (InsufficientMemory, Spacing, UnstableTimeStep, check_memory, check_resolution,  # noqa: F401
+                     check_spacing, neighbour_slots, warn_fixed_dt)
 from .blocks import evaluate
 from .config import Numerics
 from .constants import derive
@@ -96,6 +97,7 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics(), extra_terms=()) 
     def init_fn():
         r = jnp.asarray(scene.r, c.dtype)
         nbrs = nsearch.allocate(r)
+        check_spacing(scene, *jax.jit(partial(sweep_fn, Spacing(c.kernel.cutoff)))(nbrs, r=r), c.kernel.cutoff, numerics)
         # jitted: op-by-op dispatch of the first state costs ~10x its compilation (29 s vs 3 s, ldc dx 0.02)
         return jax.jit(state_at)(r, jnp.asarray(scene.u, c.dtype), nbrs), nbrs
 
