@@ -9,15 +9,17 @@ tests/test_effects.py), so it pays nothing. Timings share the machine: compare r
 """
 import argparse
 import dataclasses
-import time
 
-import jax
 import numpy as np
 
 import sph
 from sph.cases import tank, tgv
 from sph.lattice import cartesian, jitter
-from sph.rollout import make_chunk
+
+try:
+    from bench_scaling import time_chunk
+except ImportError:  # imported as bench.bench_effects
+    from bench.bench_scaling import time_chunk
 
 HOT = dict(kappa=0.01, c_p=1.0)
 
@@ -42,15 +44,7 @@ def scenes(dx):
 def ms_per_step(scene, steps, dt):
     solver = sph.build_solver(scene, sph.Numerics(dt=dt))
     state, nbrs = solver.init_fn()
-    compiled = jax.jit(make_chunk(solver.step_fn, steps)).lower(state, nbrs, 0, steps).compile()
-    jax.block_until_ready(compiled(state, nbrs, 0, steps))
-    best = np.inf
-    for _ in range(5):
-        t0 = time.perf_counter()
-        out = compiled(state, nbrs, 0, steps)
-        jax.block_until_ready(out)
-        best = min(best, time.perf_counter() - t0)
-    assert int(out[2]) == steps and not bool(out[3]), "benchmark run overflowed its neighbour list"
+    _, _, best = time_chunk(solver, state, nbrs, steps, repeats=5)
     return 1e3 * best / steps
 
 

@@ -57,7 +57,9 @@ def tgv3d_scene(n_side, effects=sph.Effects()):
                  tag=np.full(len(r), FLUID, np.int32))
 
 
-def _best(fn, *args, repeats):
+def best_time(fn, *args, repeats: int):
+    """(best wall seconds of `repeats` calls of fn(*args), the last output), after one warm-up call
+    (caches, allocator); every call waits for its result (block_until_ready)."""
     out = fn(*args)
     jax.block_until_ready(out)
     best = np.inf
@@ -67,6 +69,18 @@ def _best(fn, *args, repeats):
         jax.block_until_ready(out)
         best = min(best, time.perf_counter() - t0)
     return best, out
+
+
+def time_chunk(solver, state, nbrs, steps: int, repeats: int):
+    """(compiled chunk, compile seconds, best seconds of one chunk): `make_chunk` of `steps` steps
+    from (state, nbrs), compiled ahead and timed with `best_time`; fails if the list overflowed."""
+    chunk = jax.jit(make_chunk(solver.step_fn, steps))
+    t0 = time.perf_counter()
+    compiled = chunk.lower(state, nbrs, 0, steps).compile()
+    compile_s = time.perf_counter() - t0
+    chunk_s, out = best_time(compiled, state, nbrs, 0, steps, repeats=repeats)
+    assert int(out[2]) == steps and not bool(out[3]), "benchmark run overflowed its neighbour list"
+    return compiled, compile_s, chunk_s
 
 
 def _plan_bytes(compiled):
@@ -90,22 +104,17 @@ def measure(scene, steps, backend="cell_sort", dtype="float64", repeats=2):
     """Time per step (chunk of `steps`), search share and planned memory of one scene."""
     solver = sph.build_solver(scene, sph.Numerics(dtype=dtype, neighbor_search=backend))
     state, nbrs = solver.init_fn()
-    chunk = jax.jit(make_chunk(solver.step_fn, steps))
-    t0 = time.perf_counter()
-    compiled = chunk.lower(state, nbrs, 0, steps).compile()
-    compile_s = time.perf_counter() - t0
-    chunk_s, out = _best(compiled, state, nbrs, 0, steps, repeats=repeats)
-    assert int(out[2]) == steps and not bool(out[3]), "benchmark run overflowed its neighbour list"
+    compiled, compile_s, chunk_s = time_chunk(solver, state, nbrs, steps, repeats)
     rebuilds = count_rebuilds(solver, state, nbrs, steps)
     # one forced build with the list's capacities
     impl = solver.neighbors.impl
     if backend == "cell_sort":
         build = jax.jit(lambda r: impl._build(r, nbrs.cell_list_capacity, nbrs.max_occupancy))
-        build_s, _ = _best(build, state.r, repeats=repeats)
+        build_s, _ = best_time(build, state.r, repeats=repeats)
         build_bytes = _plan_bytes(build.lower(state.r).compile())
     else:
         moved = state.r.at[0, 0].add(solver.neighbors.skin)  # one particle past skin / 2: a rebuild
-        build_s, _ = _best(jax.jit(impl.update), moved, nbrs, repeats=repeats)
+        build_s, _ = best_time(jax.jit(impl.update), moved, nbrs, repeats=repeats)
         build_bytes = _plan_bytes(jax.jit(impl.update).lower(moved, nbrs).compile())
     per_step = chunk_s / steps
     search_per_step = build_s * rebuilds / steps

@@ -8,15 +8,17 @@ step of a jitted `lax.scan` chunk (neighbour-list updates included). Positions a
     python bench/bench_tgv.py --quick  # dx = 0.02, float64 only
 """
 import argparse
-import time
 
 import jax
-import numpy as np
 
 import sph
 from sph.cases import tgv
 from sph.lattice import cartesian, jitter
-from sph.rollout import make_chunk
+
+try:
+    from bench_scaling import time_chunk
+except ImportError:  # imported as bench.bench_tgv
+    from bench.bench_scaling import time_chunk
 
 METHODS = {
     "sph": sph.Effects(),
@@ -30,19 +32,7 @@ def measure(dx, dtype, method, steps):
     solver = sph.build_solver(tgv.scene(dx, sph.Material(eta=0.01), METHODS[method], r=r),
                               sph.Numerics(dtype=dtype))
     state, nbrs = solver.init_fn()
-    chunk = jax.jit(make_chunk(solver.step_fn, steps))
-    t0 = time.perf_counter()
-    compiled = chunk.lower(state, nbrs, 0, steps).compile()
-    compile_s = time.perf_counter() - t0
-    out = compiled(state, nbrs, 0, steps)  # warm-up run (caches, allocator)
-    jax.block_until_ready(out)
-    best = np.inf
-    for _ in range(5):
-        t0 = time.perf_counter()
-        out = compiled(state, nbrs, 0, steps)
-        jax.block_until_ready(out)
-        best = min(best, time.perf_counter() - t0)
-    assert int(out[2]) == steps and not bool(out[3]), "benchmark run overflowed its neighbour list"
+    _, compile_s, best = time_chunk(solver, state, nbrs, steps, repeats=5)
     n = state.r.shape[0]
     return dict(method=method, dx=dx, dtype=dtype, n=n, K=nbrs.idx.shape[1], compile_s=compile_s,
                 ms_per_step=1e3 * best / steps, mpps=n * steps / best / 1e6)
