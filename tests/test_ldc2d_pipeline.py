@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 
 import sph
+from sph.cases import ldc_reference as LR
 from sph.harness import io
 from sph.harness.configtools import ConfigError
 from sph.kernels import make_kernel
-from experiments.ldc2d import analysis as A
 from experiments.ldc2d import plot as P
 from experiments.ldc2d import run as R
 from experiments.ldc2d import settings as S
@@ -122,8 +122,8 @@ def test_plot_refuses_missing_runs(exp, tmp_path):
 
 # -- reference data and interpolation --------------------------------------------------------------
 def test_ghia_tables_parse_including_decimal_comma():
-    y, u = A.ghia("u", 100)
-    x, v = A.ghia("v", 100)
+    y, u = LR.ghia("u", 100)
+    x, v = LR.ghia("v", 100)
     assert len(y) == len(x) == 17 and np.all(np.diff(y) > 0) and np.all(np.diff(x) > 0)
     assert (y[0], u[0]) == (0.0, 0.0)  # written "0,00000" in the file
     assert (y[-1], u[-1]) == (1.0, 1.0)
@@ -131,7 +131,7 @@ def test_ghia_tables_parse_including_decimal_comma():
     assert u.min() == pytest.approx(-0.21090) and y[np.argmin(u)] == pytest.approx(0.4531)
     assert v[np.isclose(x, 0.5)][0] == pytest.approx(0.05454)
     assert v[0] == v[-1] == 0.0 and v.min() == pytest.approx(-0.24533)
-    y4, u4 = A.ghia("u", 400)
+    y4, u4 = LR.ghia("u", 400)
     np.testing.assert_array_equal(y4, y)
     assert u4.min() == pytest.approx(-0.32726)
 
@@ -140,10 +140,10 @@ def test_ghia_parser_tolerates_quotes_and_commas(tmp_path):
     f = tmp_path / "g.csv"
     f.write_text('129- grid,,,Re\npt. no.,y,100,"10,000"\n129,1.0000,1.00000,1.0\n'
                  '65,"0,5000", -0.20581 ,0.03111\n1,0.0000,"0,00000",0.00000\n')
-    y, u = A.ghia("u", 100, f)
+    y, u = LR.ghia("u", 100, f)
     np.testing.assert_allclose(y, [0.0, 0.5, 1.0])
     np.testing.assert_allclose(u, [0.0, -0.20581, 1.0])
-    assert A.ghia("u", 10000, f)[1][1] == pytest.approx(0.03111)
+    assert LR.ghia("u", 10000, f)[1][1] == pytest.approx(0.03111)
 
 
 def test_shepard_interpolation_reproduces_linear_fields():
@@ -154,10 +154,10 @@ def test_shepard_interpolation_reproduces_linear_fields():
     k = make_kernel("quintic", dx, 2)
     pts = np.array([[0.5, 0.5], [1.013, 0.77], [0.31, 1.52]])
     f = np.stack([np.full(len(r), 3.0), 2.0 * r[:, 0] - r[:, 1]], 1)
-    got = A.shepard(pts, r, f, vol, k)
+    got = LR.shepard(pts, r, f, vol, k)
     np.testing.assert_allclose(got[:, 0], 3.0, rtol=1e-12)
     np.testing.assert_allclose(got[:, 1], 2.0 * pts[:, 0] - pts[:, 1], atol=1e-4)  # lattice sums: ~1e-5
-    assert np.all(np.isnan(A.shepard(np.array([[9.0, 9.0]]), r, f[:, 0], vol, k)))
+    assert np.all(np.isnan(LR.shepard(np.array([[9.0, 9.0]]), r, f[:, 0], vol, k)))
 
 
 # -- configuration errors --------------------------------------------------------------------------

@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from sph.cases import ldc_reference  # noqa: E402
 from sph.harness import animate, io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
 try:  # noqa: E402
@@ -72,8 +73,8 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
                ylabel="y", title=f"{LABELS.get(m.name, m.name)}, t = {tr['time'][-1]:.3g}")
         fig.colorbar(sc, ax=ax, label="|u|", shrink=0.85)
 
-    yg, ug = analysis.ghia("u", exp.ghia_re)
-    xg, vg = analysis.ghia("v", exp.ghia_re)
+    yg, ug = ldc_reference.ghia("u", exp.ghia_re)
+    xg, vg = ldc_reference.ghia("v", exp.ghia_re)
     ax_u.plot(ug, yg, "ko", ms=5, label=f"Ghia et al. (1982), Re = {exp.ghia_re}")
     ax_v.plot(xg, vg, "ks", ms=5, label=f"Ghia et al. (1982), Re = {exp.ghia_re}")
     for m, row in zip(exp.methods, rows):

@@ -1,13 +1,10 @@
 """Run the 2D lid-driven cavity for every (dx, method) of a profile and evaluate the runs.
 
 Each run starts from the Cartesian lattice at rest (sph.cases.ldc: three layers of wall particles,
-the top ones moving at the lid speed) and runs to t_end. With `lid_corners: fixed` the wall
-particles of the top layers that lie beyond the side walls (x < 0 or x > 1, the corner blocks) are
-fixed walls, so the lid spans exactly the cavity width; `moving` keeps sph.cases.ldc's full-width lid
-(as JAX-SPH). A moving corner block has diagonal wall normals and a velocity with a component along
-them, which the one-sided Riemann wall reads as a wall receding from the fluid: at the downstream
-corner it sucks fluid particles into the wall (Riemann SPH at dx = 0.02 blows up at t = 0.79).
-Each run writes
+the top ones moving at the lid speed) and runs to t_end. With `lid_corners: fixed` (the validated
+set-up) the wall particles of the top layers that lie beyond the side walls (the corner blocks) are
+fixed walls, so the lid spans exactly the cavity width; `moving` is the full-width lid of JAX-SPH
+(why: sph.cases.ldc.LID_CORNERS). Each run writes
 
   results/<profile>/ldc2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
   results/<profile>/ldc2d/<method>_dx<dx>/metadata.json
@@ -25,7 +22,6 @@ so a background run can be followed with `tail -f`.
     python experiments/ldc2d/run.py --profile smoke [--results results/smoke] [--fig fig6]
                                     [--only tvf] [--dx 0.05] [--no-progress]
 """
-import dataclasses
 import time
 
 import numpy as np
@@ -44,13 +40,8 @@ except ImportError:  # run as a script: its folder comes first on the import pat
 
 
 def scene(exp: "S.Experiment", method: "S.Method", dx: float) -> sph.Scene:
-    sc = ldc.scene(dx, exp.material, exp.effects(method), layers=exp.wall_layers, lid_velocity=exp.lid_velocity)
-    if exp.lid_corners == "fixed":
-        x = sc.r[:, 0] - ldc.offset(dx, exp.wall_layers)
-        corner = (sc.tag == sph.MOVING_WALL) & ((x < 0.0) | (x > 1.0))
-        sc = dataclasses.replace(sc, tag=np.where(corner, sph.WALL, sc.tag).astype(np.int32),
-                                 u=np.where(corner[:, None], 0.0, sc.u))
-    return sc
+    return ldc.scene(dx, exp.material, exp.effects(method), layers=exp.wall_layers, lid_velocity=exp.lid_velocity,
+                     lid_corners=exp.lid_corners)
 
 
 def build(exp: "S.Experiment", method: "S.Method", dx: float) -> sph.Solver:
@@ -100,10 +91,10 @@ def run_one(exp: "S.Experiment", method: "S.Method", dx: float, results, progres
 
 def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     """The metrics row of a finished run (analysis.evaluate, cached beside the run on the trajectory's
-    fingerprint and the analysis settings and code)."""
+    fingerprint and the analysis settings and code: analysis.py and sph.cases.ldc_reference)."""
     sp = spec(exp, exp.method(method), dx, results)
     key = keys.digest({"run": sp.fingerprint, "analysis": to_mapping(exp.analysis), "ghia_re": exp.ghia_re,
-                       "code": keys.code_digest(analysis.__file__)})
+                       "code": analysis.code_key()})
     return runs.cached_row(sp.folder, key, lambda: analysis.evaluate(exp, method, dx, results))
 
 

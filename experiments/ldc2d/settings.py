@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Optional
 
 import sph
+from sph.cases import ldc
 from sph.harness.configtools import from_mapping, load_profile, merge, require, require_finite, to_mapping
 from sph.harness.keys import code_fingerprint, digest
 
@@ -20,7 +21,7 @@ CONFIG = HERE / "config.yaml"
 KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
 FIGURES = ("fig6", "fig7")
 VELOCITIES = ("transport", "momentum")
-LID_CORNERS = ("moving", "fixed")
+LID_CORNERS = ldc.LID_CORNERS
 WALL_MODES = ("fluid", "mirror")
 
 
@@ -45,8 +46,10 @@ class Analysis:
                     condition (Adami 2012, 2 u_wall - Shepard average of the fluid around the wall
                     particle), i.e. the velocity the solver itself gives the walls in the viscous term
     n_points        points per centreline for the plotted curves (the metrics use Ghia's 17 points)
-    steady_window   steadiness check: relative change of E_kin over the last `steady_window` time
-                    units, and the profile change between the last two averaging windows
+    steady_window   steadiness check: relative change between the mean E_kin over the last
+                    `steady_window` time units and over the window before
+                    (sph.cases.ldc_reference.window_change), and the profile change between the last
+                    two averaging windows
     """
 
     average_frames: int = 20
@@ -121,7 +124,7 @@ class Experiment:
                 f"must not exceed the number of frames ({self.frames} + 1)")
         require(self.material.eta > 0, "material.eta",
                 f"must be positive: the cavity's Re = rho_ref lid_velocity / eta needs a viscosity, got {self.material.eta}")
-        require(self.ghia_re in (100, 400, 1000, 3200, 5000, 7500, 10000), "ghia_re",
+        require(self.ghia_re in ldc.GHIA_RE, "ghia_re",
                 f"not a Reynolds number of Ghia's tables, got {self.ghia_re}")
         require(abs(self.re - self.ghia_re) <= 1e-9 * self.ghia_re, "material.eta",
                 f"Re = rho_ref lid_velocity / eta = {self.re:g} differs from ghia_re = {self.ghia_re}: the "

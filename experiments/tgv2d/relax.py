@@ -3,7 +3,7 @@
 A Cartesian lattice jittered by Gaussian noise (std noise_factor * dx, fixed seed) is advanced at
 rest (zero initial velocity) with the transport-velocity formulation and an EoS background pressure
 p_bg_factor * p_ref, until the particles settle into an even, non-lattice distribution
-(sph.harness.study.relax_periodic). The result is cached in results/<profile>/tgv2d/relaxed_dx<dx>.npy
+(sph.cases.tgv.relax). The result is cached in results/<profile>/tgv2d/relaxed_dx<dx>.npy
 with a .json sidecar; the cache is reused only when its fingerprint (relaxation settings, material,
 numerics, code) matches. run.py computes the same starts when they are missing.
 

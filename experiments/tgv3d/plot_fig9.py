@@ -29,7 +29,7 @@ STYLES = ["-", "--", "-.", ":"]
 def plot(exp: "S.Experiment", results, out=None) -> Path:
     out = Path(out) if out is not None else Path(results) / "fig9"
     out.mkdir(parents=True, exist_ok=True)
-    ref = S.load_reference(exp)
+    ref = analysis.load_reference(exp)
     fig, (ax_d, ax_e) = plt.subplots(1, 2, figsize=(10.0, 4.2), constrained_layout=True)
     shown = ref["t"] <= exp.t_end * (1 + 1e-9)
     every = max(1, int(shown.sum()) // 50)

@@ -3,7 +3,7 @@
 The cell-centred lattice of the box (2 pi)^3, jittered by Gaussian noise (std noise_factor * dx,
 fixed seed), is advanced at rest with the transport-velocity formulation and an EoS background
 pressure p_bg_factor * p_ref, the velocity zeroed every `quench_every` steps (the same relaxation
-as tgv2d's: sph.harness.study.relax_periodic). Cached in
+as tgv2d's: sph.cases.tgv3d.relax, whose RELAXATION is the paper profile's). Cached in
 results/<profile>/tgv3d/relaxed_n<n>.npy with a .json sidecar; the cache is reused only when its
 fingerprint (relaxation settings, material, numerics, code) matches.
 
@@ -14,7 +14,6 @@ import dataclasses
 from sph.cases import tgv3d
 from sph.harness import runs
 from sph.harness.cli import profile_main
-from sph.harness.study import relax_periodic
 
 try:
     from . import settings as S
@@ -23,10 +22,9 @@ except ImportError:  # run as a script: its folder comes first on the import pat
 
 
 def relax(exp: "S.Experiment", n: int, progress: bool = True):
-    """Relax the jittered lattice of n^3 particles (sph.harness.study.relax_periodic, as tgv2d);
+    """Relax the jittered lattice of n^3 particles (sph.cases.tgv3d.relax, as tgv2d);
     returns (positions (n^3, 3), info)."""
-    return relax_periodic(tgv3d.scene, (tgv3d.SIDE,) * 3, exp.dx(n), exp.material, exp.numerics, exp.relaxation,
-                          progress, desc=f"relax {S.n_tag(n)}")
+    return tgv3d.relax(exp.dx(n), exp.material, exp.numerics, exp.relaxation, progress, desc=f"relax {S.n_tag(n)}")
 
 
 def relaxed_positions(exp: "S.Experiment", n: int, results, progress: bool = True):

@@ -62,7 +62,7 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
     """Rebuild metrics.csv from the trajectories of exactly the current config's finished runs (a run
     of other inputs, or a removed method or resolution, leaves no row behind); also writes each run's
     record."""
-    ref = S.load_reference(exp)
+    ref = analysis.load_reference(exp)
     rows = []
     for n in exp.n_side:
         for m in exp.methods:

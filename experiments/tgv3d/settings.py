@@ -1,16 +1,14 @@
 """Settings of the 3D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
-the reference data, and the fingerprints that decide whether a cached result still matches its inputs.
+the reference file (read by analysis.py: sph.cases.tgv3d_reference), and the fingerprints that decide whether a cached result still matches its inputs.
 What it shares with the 2D study (methods, paths, cache keys, relaxed starts, runs) is
 sph.harness.study's."""
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
-
 import sph
 from sph.cases import tgv3d
-from sph.harness.configtools import ConfigError, load_profile, require, require_finite, to_mapping
+from sph.harness.configtools import load_profile, require, require_finite, to_mapping
 from sph.harness.keys import digest
 from sph.harness.layout import Study
 from sph.harness.study import Method, check_methods, check_output
@@ -118,24 +116,6 @@ def reference_path(exp: Experiment) -> Path:
     return p if p.is_absolute() else ROOT / p
 
 
-def load_reference(exp: Experiment) -> dict:
-    """JAX-Fluids reference (validation_refs/PROVENANCE.md): t, -dE/dt, E_kin per unit volume, from
-    t = 0.01. The exact t = 0 values (E = U^2/8, -dE/dt = 3 nu U^2/4, sph.cases.tgv3d) are put in
-    front, so that frames from t = 0 on interpolate without extrapolating."""
-    path = reference_path(exp)
-    try:
-        data = np.loadtxt(path, delimiter=",", ndmin=2)
-    except (OSError, ValueError) as e:
-        raise ConfigError(f"reference: cannot read {path} ({e})") from None
-    if data.shape[1] != 3 or data.shape[0] < 2 or not np.all(np.isfinite(data)) or np.any(np.diff(data[:, 0]) <= 0):
-        raise ConfigError(f"reference: {path} must hold rows t, -dE/dt, E_kin with increasing t, got shape {data.shape}")
-    U = exp.material.u_ref
-    t = np.concatenate([[0.0], data[:, 0]])
-    diss = np.concatenate([[tgv3d.dissipation_initial(exp.nu, U)], data[:, 1]])
-    e = np.concatenate([[tgv3d.e_kin_initial(U)], data[:, 2]])
-    return {"t": t, "dissipation": diss, "e_kin": e, "path": path}
-
-
 # -- paths ----------------------------------------------------------------------------------------
 def n_tag(n: int) -> str:
     return f"n{n}"
@@ -159,13 +139,13 @@ def metrics_path(results) -> Path:
 
 
 # -- fingerprints ---------------------------------------------------------------------------------
-RELAX_MODULES = ("sph.harness.study", "sph.cases.tgv3d")
-"""The code of a relaxed start besides the solver's (the study's relaxation, the 3D TGV scene)."""
+RELAX_MODULES = ("sph.cases.tgv3d",)
+"""The code of a relaxed start besides the solver's (the 3D TGV scene and its relaxation, sph.cases.relaxed)."""
 
 
 def relax_fingerprint(exp: Experiment, n: int) -> str:
     """The relaxed start of n^3 particles: its settings and the code that relaxes (the solver's, the
-    study's relaxation and the scene, settings.py), without docstrings or comments."""
+    case's relaxation and scene, settings.py), without docstrings or comments."""
     return digest({"n_side": n, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
                    "relaxation": to_mapping(exp.relaxation), "code": STUDY.code_hash(modules=RELAX_MODULES)})
 

@@ -10,21 +10,72 @@ grid solution (JAX-Fluids, validation_refs/tgv3d_ref_<Re>.txt). At t = 0 the fie
                for an incompressible periodic field <|grad u|^2> = <|omega|^2>)
 
 E_kin here is (1/2) sum_i m_i |v_i|^2 / (rho_ref (2 pi)^3), i.e. per unit volume and density,
-the normalisation of the reference file.
+the normalisation of the reference file (`e_kin_normalised`).
+
+The validated set-up (experiments/tgv3d, JAX-SPH Fig. 9): NUMERICS, the three METHODS (the Effects of
+each), a start relaxed with RELAXATION (`relax`); the comparison with the JAX-Fluids reference is
+sph.cases.tgv3d_reference (apart, so that editing it re-runs nothing):
+
+    mat, dx = tgv3d.material(re=100), tgv3d.dx_for(32)
+    r, _ = tgv3d.relax(dx, mat)
+    solver = sph.build_solver(tgv3d.scene(dx, mat, tgv3d.METHODS["tvf"], r=r), tgv3d.NUMERICS)
+
+or in one call `scene, numerics = tgv3d.setup(dx, re=100, method="tvf")`.
 """
 import math
 
 import numpy as np
 
-from ..config import Effects, Material
-from ..errors import ConfigError
+from ..config import Effects, Material, Numerics
+from ..errors import ConfigError, require
 from ..domain import Domain
 from ..lattice import cartesian, check_run_size, count
+from ..relax import Relaxation
 from ..scene import Scene
 from ..state import FLUID
+from .relaxed import relax_periodic
 
 SIDE = 2.0 * np.pi
 """Side of the periodic box."""
+
+NUMERICS = Numerics(kernel="quintic", h_factor=1.0, cfl=0.25, c_ref_factor=10.0, dtype="float64",
+                    neighbor_search="cell_sort", reorder_every=200)
+"""The numerics of the validated runs (experiments/tgv3d/config.yaml, profile paper): the vortex mixes
+the particles, so they are sorted by cell every 200 steps (sph.reorder)."""
+
+METHODS = {"sph": Effects(), "tvf": Effects(tvf=True), "riemann": Effects(riemann=True, density_evolution=True)}
+"""Standard SPH, transport-velocity SPH (Adami 2013) and Riemann SPH (Zhang 2017b): their Effects."""
+
+RELAXATION = Relaxation(steps=1000, p_bg_factor=0.02, noise_factor=0.25, seed=123, quench_every=200)
+"""The relaxed start of the validated runs: JAX-SPH validation/tgv3d.sh's (TVF, p_bg 0.02 p_ref, noise
+0.25 dx, seed 123) with the velocity zeroed every 200 steps so that the particles settle (from the
+bare lattice all three methods break up by t ~ 1; sph.relax.Relaxation's defaults are JAX-SPH's)."""
+
+
+def material(re: float, U: float = 1.0, rho_ref: float = 1.0) -> Material:
+    """The fluid of Reynolds number re = rho_ref U L / eta (L = 1, box (2 pi L)^3)."""
+    return Material(rho_ref=rho_ref, eta=rho_ref * U / re, u_ref=U)
+
+
+def relax(dx: float, material: Material, numerics: Numerics = NUMERICS, relaxation: Relaxation = RELAXATION,
+          progress: bool = True, desc: str = "relax"):
+    """The relaxed start at spacing dx = 2 pi / n (sph.cases.relaxed.relax_periodic): (positions, info)."""
+    return relax_periodic(scene, (SIDE,) * 3, dx, material, numerics, relaxation, progress, desc=desc)
+
+
+def setup(dx: float, re: float, method: str = "tvf", relaxation: Relaxation = RELAXATION, progress: bool = True):
+    """The validated set-up at spacing dx and Reynolds number re (U = 1): (scene on the start relaxed
+    with `relaxation`, or on the bare lattice with None; NUMERICS)."""
+    require(method in METHODS, "method", f"{method!r} is not one of {list(METHODS)}")
+    mat = material(re)
+    r = None if relaxation is None else relax(dx, mat, NUMERICS, relaxation, progress)[0]
+    return scene(dx, mat, METHODS[method], r=r), NUMERICS
+
+
+def e_kin_normalised(e_kin, rho_ref: float = 1.0) -> np.ndarray:
+    """The run's E_kin series (sph.diagnostics.kinetic_energy, (1/2) sum_i m_i |v_i|^2) per unit volume
+    and density: the reference's normalisation, U^2 / 8 at t = 0."""
+    return np.asarray(e_kin, float) / (rho_ref * SIDE**3)
 
 
 def velocity(r, U: float = 1.0) -> np.ndarray:

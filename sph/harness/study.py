@@ -1,8 +1,8 @@
 """A study: named methods (the effects their scenes declare) run at each resolution of a profile.
 
 What the Taylor-Green studies share (experiments/tgv2d, experiments/tgv3d and the accuracy atlas's
-TGV sweep): the method list and its checks, the relaxed start of a periodic box (a jittered lattice
-relaxed with `sph.relax`), the cached run's spec and the sweep over (resolution, method). Where a
+TGV sweep): the method list and its checks, the cached run's spec and the sweep over (resolution,
+method); the relaxed start of a periodic box is the case's (sph.cases.relaxed). Where a
 study writes and which of its files its keys cover is `sph.harness.layout.Study`. What a study
 measures stays with the study.
 """
@@ -10,13 +10,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
-import numpy as np
 import pandas as pd
 
-from .. import relax as core_relax
 from ..config import Effects
 from ..errors import require
-from ..lattice import cartesian, jitter
 from . import runs
 from .layout import Study
 
@@ -47,17 +44,6 @@ def check_output(exp) -> None:
             f"must be positive, got {exp.connectivity_radius_factor}")
     for i, k in enumerate(exp.keep):
         require(k in KEEPABLE, f"keep[{i}]", f"{k!r} is not one of {list(KEEPABLE)}")
-
-
-def relax_periodic(scene_fn: Callable, box: tuple, dx: float, material, numerics, relaxation,
-                   progress: bool = True, desc: str = "relax"):
-    """Relax the lattice of spacing `dx` filling the periodic `box`, jittered by Gaussian noise (std
-    relaxation.noise_factor * dx, relaxation.seed), at rest with TVF (sph.relax); `scene_fn(dx,
-    material, effects, r=r)` builds the case's scene. Returns (positions, info)."""
-    r = jitter(cartesian([0.0] * len(box), list(box), dx), relaxation.noise_factor * dx, relaxation.seed, box=box)
-    r = np.where(r >= np.asarray(box), 0.0, r)  # np.mod can round a tiny negative up to exactly the box side
-    scene = scene_fn(dx, material, Effects(tvf=True), r=r)
-    return core_relax.relax(scene, numerics, relaxation, progress, desc=desc)
 
 
 def run_spec(study: Study, exp, method: Method, tag: str, results, fingerprint: str, metadata: dict) -> runs.RunSpec:

@@ -13,8 +13,8 @@ from .keys import digest
 from .layout import Study
 from .study import Method, check_methods, check_output
 
-RELAX_MODULES = ("sph.harness.study", "sph.cases.tgv")
-"""The code of a relaxed start besides the solver's (the study's relaxation, the TGV scene)."""
+RELAX_MODULES = ("sph.cases.tgv",)
+"""The code of a relaxed start besides the solver's (the TGV scene and its relaxation, sph.cases.relaxed)."""
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def load(path, profile: str, overrides: Optional[dict] = None) -> Experiment:
 
 def relax_fingerprint(study: Study, exp: Experiment, dx: float) -> str:
     """The relaxed start at `dx`: its settings and the code that relaxes (the solver's, the study's
-    relaxation and the TGV scene, settings.py of the study's folder), without docstrings or comments."""
+    relaxation and scene of sph.cases.tgv, settings.py of the study's folder), without docstrings or comments."""
     return digest({"dx": dx, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
                    "relaxation": to_mapping(exp.relaxation), "code": study.code_hash(modules=RELAX_MODULES)})
 
