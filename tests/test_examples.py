@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import sph
-from sph.cases import ldc, ldc_reference, tgv, tgv3d
+from sph.cases import ldc, ldc_reference, tank, tgv, tgv3d
+from experiments.dambreak2d import settings as dambreak2d_settings
 from experiments.ldc2d import settings as ldc2d_settings
 from experiments.tgv2d import settings as tgv2d_settings
 from experiments.tgv3d import settings as tgv3d_settings
@@ -86,6 +87,13 @@ def test_tgv_recipes_are_the_experiment_paper_profiles(case, settings):
     assert exp.numerics == case.NUMERICS and exp.relaxation == case.RELAXATION
     assert {m.name: m.effects for m in exp.methods} == case.METHODS
     assert case.material(re=exp.re) == exp.material
+
+
+def test_dam_break_recipe_is_the_experiment_paper_profile():
+    exp = dambreak2d_settings.load("paper")
+    assert exp.effects == tank.DAM_BREAK_EFFECTS and exp.numerics == tank.DAM_BREAK_NUMERICS
+    assert exp.fluid.eta == tank.DAM_BREAK_ETA and exp.hydrostatic_init
+    assert (exp.tank.length, exp.tank.height, exp.tank.layers) == tuple(tank.DAM_BREAK_TANK.values())
 
 
 def test_fixed_lid_corners_span_the_cavity_width():

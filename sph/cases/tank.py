@@ -4,15 +4,39 @@ Martin & Moyce 1952) and the hydrostatic tank at rest.
 Tank interior [0, L_tank] x [0, H_tank] (shifted by `layers * dx` into the scene box), water column
 [0, width] x [0, height] against the left wall, gravity g in -y. u_ref = sqrt(2 g height), the
 largest free-fall speed of the column.
+
+The validated dam break (experiments/dambreak2d, JAX-SPH Fig. 8; units rho_ref = g = H = 1): the tank
+DAM_BREAK_TANK, Riemann SPH with DAM_BREAK_EFFECTS and DAM_BREAK_NUMERICS, viscosity DAM_BREAK_ETA,
+a hydrostatic start (`hydrostatic`); its comparisons with Buchner (2002) and Martin & Moyce (1952)
+are experiments/dambreak2d/evaluate.py's.
 """
+import math
+
 import jax.numpy as jnp
 import numpy as np
 
-from ..config import Effects, Material
+from ..config import Effects, Material, Numerics
 from ..domain import Domain
 from ..lattice import cartesian, check_run_size, count, wall_layers
 from ..scene import Scene
 from ..state import FLUID, WALL, ParticleState
+
+DAM_BREAK_TANK = {"tank_length": 5.366, "tank_height": 2.0, "layers": 3}
+"""The closed tank of the dam break (interior 5.366 H x 2 H, 3 wall layers); the column is 2 x 1 (Fig. 8)
+or 1 x 1 (the surge front of Martin & Moyce)."""
+
+DAM_BREAK_EFFECTS = Effects(riemann=True, density_evolution=True, density_reinit_every=20, gravity=(0.0, -1.0),
+                            walls="free_slip")
+"""Riemann SPH with Shepard re-initialization every 20 steps (Zhang 2017) and free-slip walls (no boundary
+layer is resolvable at dx = 0.02)."""
+
+DAM_BREAK_NUMERICS = Numerics(kernel="quintic", h_factor=1.0, cfl=0.25, c_ref_factor=10.0 * math.sqrt(2.0),
+                              eta_limiter=3.0, dtype="float64")
+"""c_ref = 10 sqrt(2) u_ref = 20 sqrt(g H) as JAX-SPH's validation/db2d.sh (with 10 u_ref the first impact
+compresses particles in the far corner by 3.4 %)."""
+
+DAM_BREAK_ETA = 5.0e-5
+"""JAX-SPH's viscosity of the dam break (rho_ref = 1)."""
 
 
 def scene(dx: float, material: Material, effects: Effects, width: float, height: float, tank_length: float,
