@@ -59,11 +59,6 @@ class Particles:
                  and x.ndim == 2}
         return replace(self, **split)
 
-    @property
-    def n(self) -> int:
-        x = self.r if self.r is not None else next(v for f in fields(self) if (v := getattr(self, f.name)) is not None)
-        return (x.c[0] if isinstance(x, PVec) else x).shape[0]
-
 
 class MissingField(AttributeError):
     """A term read a field its pass does not provide."""
