@@ -7,6 +7,7 @@ About a minute on an idle 2-core CPU (three runs of ~3500 steps plus compilation
 is not yet steady, but the primary vortex has formed: the checks are qualitative (lid-driven profile
 shapes as in Ghia et al. 1982) with loose bounds on the deviation from Ghia.
 """
+import dataclasses
 import json
 
 import numpy as np
@@ -100,6 +101,26 @@ def test_trajectory_and_metadata(exp, finished):
     assert meta["cavity_offset"] == pytest.approx(3 * DX) and meta["re"] == pytest.approx(100.0)
     assert meta["periodic_boundary_conditions"] == [False, False]
     assert "walls=no_slip" in meta["effects"] and "riemann" in meta["effects"]
+
+
+@pytest.mark.parametrize("walls", ["mirror", "fluid"])
+def test_script_profiles_equal_the_experiment_ones(exp, finished, walls):
+    """sph.cases.ldc_reference.compare (a script's states and solver) gives the profiles and deviations
+    of the experiment's analysis (its stored frames) at the same frames."""
+    from types import SimpleNamespace
+    from experiments.ldc2d import analysis
+
+    results, _ = finished
+    an = dataclasses.replace(exp.analysis, walls=walls)
+    ip = analysis.Interpolator(S.run_dir(results, "tvf", DX), an)
+    frames = range(ip.n_frames - 3, ip.n_frames)
+    yg, xg = LR.ghia("u", 100)[0], LR.ghia("v", 100)[0]
+    u, _, v, _ = ip.averaged(frames, yg, xg)
+    states = [SimpleNamespace(r=r, v=vel, u=None, rho=rho, mass=ip.mass) for r, vel, rho in map(ip.frame, frames)]
+    got = LR.compare(R.build(exp, exp.method("tvf"), DX), states, re=100, walls=walls)
+    np.testing.assert_allclose(got["u"], u, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(got["v"], v, rtol=0, atol=1e-14)
+    assert got["u_rms"] == pytest.approx(LR.deviations(u, v, 100)["u_rms"], abs=1e-14)
 
 
 def test_finished_run_is_skipped_and_plotted(exp, finished):
