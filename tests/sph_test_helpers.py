@@ -1,10 +1,15 @@
-"""Small shared builders for the core tests: periodic lattices, pair geometry, scenes, diagnostics.
+"""Small shared builders for the core tests: periodic lattices, pair geometry, scenes, diagnostics,
+and copies of an experiment folder (a folder is a template) with a smaller smoke profile.
 
 Everything here only assembles inputs from the public pieces of `sph`; no expected values live here.
 """
+import shutil
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+import yaml
 
 import sph
 from sph.domain import Domain
@@ -16,6 +21,7 @@ from sph.scene import Scene
 from sph.state import FLUID
 
 UNIT_SQUARE = Domain(box=(1.0, 1.0), periodic=(True, True))
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def lattice(dx, dim=2):
@@ -33,6 +39,18 @@ def min_image(r, box, periodic):
     d = r[:, None, :] - r[None, :, :]
     box, per = np.asarray(box, float), np.asarray(periodic, bool)
     return np.where(per, d - box * np.round(d / box), d)
+
+
+def listed_pairs(idx):
+    """The set of pairs (i, j) of a dense (N, K) neighbour list padded with N; fails on a duplicate
+    or a self pair."""
+    idx = np.asarray(idx)
+    n = idx.shape[0]
+    i, k = np.nonzero(idx < n)
+    pairs = list(zip(i.tolist(), idx[i, k].tolist()))
+    assert len(set(pairs)) == len(pairs), "duplicate pairs in the neighbour list"
+    assert all(a != b for a, b in pairs), "self pairs in the neighbour list"
+    return set(pairs)
 
 
 def brute_force_neighbors(r, radius, box=(1.0, 1.0), periodic=(True, True)):
@@ -92,3 +110,14 @@ def tree_allclose(a, b, rtol=1e-12, atol=1e-12):
     la, lb = jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)
     assert len(la) == len(lb)
     return all(np.allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol) for x, y in zip(la, lb))
+
+
+def copied_experiment(name: str, dest, **smoke) -> Path:
+    """A copy of experiments/<name> at `dest` (an experiment of its own, named after its folder) whose
+    smoke profile has the keys `smoke` replaced."""
+    dest = Path(dest)
+    shutil.copytree(ROOT / "experiments" / name, dest, ignore=shutil.ignore_patterns("__pycache__"))
+    cfg = yaml.safe_load((dest / "config.yaml").read_text())
+    cfg["profiles"]["smoke"].update(smoke)
+    (dest / "config.yaml").write_text(yaml.safe_dump(cfg))
+    return dest

@@ -26,17 +26,7 @@ from sph.cases import tgv
 from sph.domain import Domain
 from sph.lattice import cartesian, jitter
 from sph.neighbors import make_neighbor_search
-from sph_test_helpers import kinetic_energy
-
-
-def _pairs(idx):
-    idx = np.asarray(idx)
-    n = idx.shape[0]
-    i, k = np.nonzero(idx < n)
-    pairs = list(zip(i.tolist(), idx[i, k].tolist()))
-    assert len(set(pairs)) == len(pairs), "duplicate pairs in the neighbour list"
-    assert all(a != b for a, b in pairs), "self pairs in the neighbour list"
-    return set(pairs)
+from sph_test_helpers import kinetic_energy, listed_pairs
 
 
 DOMAINS = {
@@ -71,7 +61,7 @@ def test_pair_sets_equal_jax_md(name, kind, dtype):
     ref = make_neighbor_search(domain, cutoff, skin, backend="jax_md").allocate(r)
     assert not bool(ours.did_buffer_overflow) and not bool(ref.did_buffer_overflow)
     assert ours.idx.dtype == jnp.int32 and ours.idx.shape[0] == r.shape[0]
-    mine, theirs = _pairs(ours.idx), _pairs(ref.idx)
+    mine, theirs = listed_pairs(ours.idx), listed_pairs(ref.idx)
     assert mine == theirs, f"missing {sorted(theirs - mine)[:5]}, extra {sorted(mine - theirs)[:5]}"
     assert len(mine) > 10 * r.shape[0], "meant to test a well-populated list"
 
@@ -85,7 +75,7 @@ def test_single_cell_dimensions_and_out_of_box_positions():
     for dom, pos in [(domain, r), (DOMAINS["2d-walled"], r * 0.7 - 0.02)]:
         ours = make_neighbor_search(dom, 0.1, 0.02, backend="cell_sort").allocate(pos)
         ref = make_neighbor_search(dom, 0.1, 0.02, backend="jax_md").allocate(pos)
-        assert _pairs(ours.idx) == _pairs(ref.idx)
+        assert listed_pairs(ours.idx) == listed_pairs(ref.idx)
 
 
 def _jitted_update(search):
@@ -108,7 +98,7 @@ def test_overflow_when_crowded_into_one_cell():
     again = search.allocate(jnp.asarray(crowded))
     assert not bool(again.did_buffer_overflow)
     ref = make_neighbor_search(domain, 3 * dx, 0.5 * dx, backend="jax_md").allocate(jnp.asarray(crowded))
-    assert _pairs(again.idx) == _pairs(ref.idx)
+    assert listed_pairs(again.idx) == listed_pairs(ref.idx)
 
 
 def test_overflow_of_neighbour_slots_or_cell_slots_alone():
@@ -146,7 +136,7 @@ def test_verlet_skin_rebuilds_only_after_half_the_skin(name):
     np.testing.assert_array_equal(np.asarray(nbrs1.reference_position), r)  # not rebuilt
     # every pair within the cutoff is still listed (the Verlet-skin guarantee)
     ref = make_neighbor_search(domain, cutoff, 0.0, backend="jax_md").allocate(jnp.asarray(r1))
-    assert _pairs(ref.idx) <= _pairs(nbrs1.idx)
+    assert listed_pairs(ref.idx) <= listed_pairs(nbrs1.idx)
     # one particle moves 0.6 skin from the reference: rebuilt at r2, exact again
     r2 = r1.copy()
     r2[5] = r[5] + 0.6 * skin * np.eye(domain.dim)[0]
@@ -154,7 +144,7 @@ def test_verlet_skin_rebuilds_only_after_half_the_skin(name):
     nbrs2 = update(jnp.asarray(r2), nbrs1)
     np.testing.assert_array_equal(np.asarray(nbrs2.reference_position), r2)
     ref2 = make_neighbor_search(domain, cutoff, skin, backend="jax_md").allocate(jnp.asarray(r2))
-    assert _pairs(nbrs2.idx) == _pairs(ref2.idx)
+    assert listed_pairs(nbrs2.idx) == listed_pairs(ref2.idx)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -191,7 +181,7 @@ def test_tgv_run_equals_jax_md(effects):
         state, nbrs, reallocs = rollout.advance(chunk, solver.neighbors, state, nbrs, 0, n_steps)
         out[backend] = (state, nbrs)
     (a, na), (b, nb) = out["cell_sort"], out["jax_md"]
-    assert _pairs(na.idx) == _pairs(nb.idx)  # same rebuilds at the same positions
+    assert listed_pairs(na.idx) == listed_pairs(nb.idx)  # same rebuilds at the same positions
     _close(a, b, 1e-11)
 
 

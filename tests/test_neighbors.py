@@ -18,22 +18,13 @@ from sph import rollout
 from sph.cases import tgv
 from sph.domain import Domain
 from sph.neighbors import make_neighbor_search
-from sph_test_helpers import brute_force_neighbors, jittered_lattice, periodic_scene
+from sph_test_helpers import brute_force_neighbors, jittered_lattice, listed_pairs, periodic_scene
 
 CUTOFF, SKIN = 0.15, 0.025
 
 
-def _pairs_of_list(idx):
-    idx = np.asarray(idx)
-    n = idx.shape[0]
-    i, k = np.nonzero(idx < n)
-    pairs = list(zip(i.tolist(), idx[i, k].tolist()))
-    assert len(set(pairs)) == len(pairs), "duplicate pairs in the neighbour list"
-    return set(pairs)
-
-
 def _brute_force_pairs(r, radius, domain):
-    return _pairs_of_list(brute_force_neighbors(r, radius, domain.box, domain.periodic))
+    return listed_pairs(brute_force_neighbors(r, radius, domain.box, domain.periodic))
 
 
 DOMAINS = {
@@ -52,8 +43,7 @@ def test_list_equals_brute_force_pairs(name, backend):
     search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
     nbrs = search.allocate(jnp.asarray(r))
     assert not bool(nbrs.did_buffer_overflow)
-    listed = _pairs_of_list(nbrs.idx)
-    assert all(i != j for i, j in listed), "self pairs in the neighbour list"
+    listed = listed_pairs(nbrs.idx)  # no duplicate, no self pair
     expected = _brute_force_pairs(r, CUTOFF + SKIN, domain)
     assert listed == expected, (f"missing {sorted(expected - listed)[:5]}, "
                                 f"extra {sorted(listed - expected)[:5]}")
@@ -90,7 +80,7 @@ def test_verlet_skin_keeps_all_pairs_within_cutoff(name, backend):
     nbrs1 = search.update(jnp.asarray(r1), nbrs)
     assert not bool(nbrs1.did_buffer_overflow)
     np.testing.assert_array_equal(np.asarray(nbrs1.idx), np.asarray(nbrs.idx))  # not rebuilt
-    assert _brute_force_pairs(r1, CUTOFF, domain) <= _pairs_of_list(nbrs1.idx)
+    assert _brute_force_pairs(r1, CUTOFF, domain) <= listed_pairs(nbrs1.idx)
 
     # a larger move triggers a rebuild, which is again exact for cutoff + skin
     step2 = np.zeros_like(r)
@@ -99,7 +89,7 @@ def test_verlet_skin_keeps_all_pairs_within_cutoff(name, backend):
     nbrs2 = search.update(jnp.asarray(r2), nbrs1)
     assert not bool(nbrs2.did_buffer_overflow)
     np.testing.assert_array_equal(np.asarray(nbrs2.reference_position), r2)  # rebuilt at r2
-    assert _pairs_of_list(nbrs2.idx) == _brute_force_pairs(r2, CUTOFF + SKIN, domain)
+    assert listed_pairs(nbrs2.idx) == _brute_force_pairs(r2, CUTOFF + SKIN, domain)
 
 
 def _assert_states_close(a, b, rtol=1e-12):
