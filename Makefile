@@ -10,6 +10,14 @@ RESULTS := results/$(PROFILE)
 # so the figures that depend on the stamp re-plot only then.
 FORCE:
 
+# Deliverables (figures, metrics tables, the atlas) are verified on every make, by one mechanism
+# (sph.harness.deliver): each deliverable rule is FORCE'd and its recipe is `$(DELIVER) <command>`,
+# with its outputs in the target-specific OUTS. DELIVER re-makes the outputs only when the manifest
+# written beside them (every input's digest: the run stamps, which list exactly the current runs, the
+# scripts, the files the script read; every output's digest) differs from now: a method or dx removed
+# from a profile, a re-run, a truncated metrics.csv or a missing figure. Otherwise one line, "up to date".
+DELIVER = $(PY) -m sph.harness.deliver $(OUTS) --from $(filter-out FORCE,$^) --
+
 
 .PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
 .PHONY: all all-targets all-sitl report snapshot readme-tables

@@ -18,10 +18,17 @@ $(GRADCHECK_OUT)/check.done: FORCE | $(VENV)
 $(GRADCHECK_OUT)/growth.done: FORCE | $(VENV)
 	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(GRADCHECK)/run.py --profile $(PROFILE) --results $(RESULTS) --part growth
 
-fig1: $(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv
-$(RESULTS)/fig1/fig1.png $(RESULTS)/fig1/fig1.pdf $(RESULTS)/fig1/metrics.csv &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py
-	$(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what fig1
+# the figures run on every make through $(DELIVER) (sph.harness.deliver): re-plotted only when the
+# current results (the stamps), the script or the figures' own files differ from what they were made from
+FIG1_OUT   := $(addprefix $(RESULTS)/fig1/,fig1.png fig1.pdf metrics.csv)
+GROWTH_OUT := $(addprefix $(RESULTS)/fig1/,grad_norm_vs_steps.png grad_norm_vs_steps.csv)
 
-grad-growth: $(RESULTS)/fig1/grad_norm_vs_steps.png $(RESULTS)/fig1/grad_norm_vs_steps.csv
-$(RESULTS)/fig1/grad_norm_vs_steps.png $(RESULTS)/fig1/grad_norm_vs_steps.csv &: $(GRADCHECK_OUT)/growth.done $(GRADCHECK)/plot.py
-	$(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what growth
+fig1: $(FIG1_OUT)
+$(FIG1_OUT): OUTS := $(FIG1_OUT)
+$(FIG1_OUT) &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what fig1
+
+grad-growth: $(GROWTH_OUT)
+$(GROWTH_OUT): OUTS := $(GROWTH_OUT)
+$(GROWTH_OUT) &: $(GRADCHECK_OUT)/growth.done $(GRADCHECK)/plot.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what growth

@@ -18,5 +18,6 @@ $(INVERSE_RUNS): FORCE | $(VENV)
 inverse: $(INVERSE_RUNS)
 
 fig2: $(FIG2_OUT)
-$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py
-	$(PY) $(INVERSE)/plot.py --profile $(PROFILE) --results $(RESULTS)
+$(FIG2_OUT): OUTS := $(FIG2_OUT)
+$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(INVERSE)/plot.py --profile $(PROFILE) --results $(RESULTS)

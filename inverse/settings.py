@@ -7,7 +7,7 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.harness.configtools import load_profile, require, require_finite, to_mapping
+from sph.harness.configtools import load_profile, require, require_agree, require_finite, to_mapping
 from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
@@ -108,10 +108,11 @@ class Experiment:
         require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
         require(len(self.u0) == 2, "u0", f"expected 2 entries (x, y), got {len(self.u0)}")
         n_side = self.cube_size / self.dx
-        require(self.cube_size > 0 and abs(n_side - round(n_side)) < 1e-6, "cube_size",
-                f"must be a positive multiple of dx = {self.dx}, got {self.cube_size}")
+        require_agree(self.cube_size > 0 and abs(n_side - round(n_side)) < 1e-6, ("cube_size", "dx"),
+                      f"must be a positive multiple of dx = {self.dx}, got {self.cube_size}")
         n_box = self.box_size / self.dx
-        require(abs(n_box - round(n_box)) < 1e-6, "box_size", f"must be a multiple of dx = {self.dx}, got {self.box_size}")
+        require_agree(abs(n_box - round(n_box)) < 1e-6, ("box_size", "dx"),
+                      f"must be a multiple of dx = {self.dx}, got {self.box_size}")
         require(self.layers >= 1, "layers", f"must be >= 1, got {self.layers}")
         require(len(self.cases) > 0, "cases", "needs at least one case")
         require(len(self.starts) > 0, "starts", "needs at least one start")
@@ -142,8 +143,10 @@ class Experiment:
 
     def _check_block(self, origin, key):
         o = np.asarray(origin, float)
-        require(np.all(o >= 0) and np.all(o + self.cube_size <= self.box_size + 1e-12), key,
-                f"the block [{origin}, + {self.cube_size}] does not fit into the box [0, {self.box_size}]^2")
+        require_agree(np.all(o >= 0) and np.all(o + self.cube_size <= self.box_size + 1e-12),
+                      (key, "cube_size", "box_size"),
+                      f"the block at {list(origin)} of side cube_size = {self.cube_size} does not fit into the box "
+                      f"[0, {self.box_size}]^2")
 
     @property
     def n_fluid(self) -> int:

@@ -219,10 +219,14 @@ def test_stamp_changes_only_with_the_outputs(tmp_path):
     st = d / "runs.done"
     assert stamp.update(st, d)
     assert not stamp.update(st, d)
-    (d / "metrics.csv").write_text("a\n1\n")  # derived tables do not count
+    (d / "metrics.csv").write_text("a\n1\n")  # a metrics table is an output: a rewritten one counts
+    assert stamp.update(st, d)
     assert not stamp.update(st, d)
     (d / "metadata.json").write_text('{"n_steps": 3}')
     assert stamp.update(st, d)
+    (d / "run.log").write_text("x")  # logs and set-aside copies do not count
+    (d / "traj.h5.stale-0").write_text("x")
+    assert not stamp.update(st, d)
 
 
 # -- a copied folder is an experiment of its own ------------------------------------------------------

@@ -26,7 +26,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-
+from sph.harness import stamp  # noqa: E402
+from sph.harness.deliver import note_input  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
@@ -45,17 +46,36 @@ PROBLEMS = {  # problem -> (experiment of its records, error column, what the er
 }
 
 
+def current_records(root: Path) -> list:
+    """The record.json files of exactly the current runs below `root`: those in a folder that a run
+    stamp there lists (sph.harness.stamp: a run of a method, dx, kernel or dtype removed from its
+    profile is not), or every one when `root` has no stamp (an experiment run without make). The
+    stamps and records read are the atlas's inputs (sph.harness.deliver.note_input)."""
+    if not root.exists():
+        return []
+    current = stamp.current_folders(root)
+    note_input(*sorted(root.rglob("*.done")))
+    found = []
+    for p in sorted(root.rglob("record.json")):
+        if current is None or any(q in current for q in (p.parent.resolve(), *p.parent.resolve().parents)):
+            note_input(p)
+            found.append(p)
+    return found
+
+
 def gather(atlas: "S.Atlas", results) -> pd.DataFrame:
-    """Every record.json below the sweep folder and the gathered experiments' folders, + gradcheck."""
+    """The record.json of every current run below the sweep folder and the gathered experiments'
+    folders (`current_records`), + gradcheck."""
     results = Path(results)
     roots = [S.out_dir(results)] + [results / g for g in atlas.gather if g != "gradcheck"]
     rows = []
     for root in roots:
-        for p in sorted(root.rglob("record.json")) if root.exists() else []:
+        for p in current_records(root):
             rec = json.loads(p.read_text())
             rec["folder"] = str(p.parent.relative_to(results))
             rows.append(rec)
     grad = results / "gradcheck" / "metrics.csv"
+    note_input(grad)
     if grad.exists():
         for _, g in pd.read_csv(grad).iterrows():
             rows.append({"experiment": "gradcheck", "target": "fig1", "method": f"AD {g['case']}",
@@ -224,6 +244,7 @@ def checkpointing_lines(csv: Path) -> list:
     same forward steps, so it buys memory with time at no cost in accuracy: tests/test_gradients.py
     checks equal gradients to round-off; here the gradient norms of the strategies are compared."""
     lines = ["## Gradients through long rollouts: what checkpointing costs", ""]
+    note_input(csv)
     if not csv.exists():
         return lines + [f"no table {csv} (run `python bench/bench_grad_memory.py`)", ""]
     t = pd.read_csv(csv)

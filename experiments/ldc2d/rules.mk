@@ -29,14 +29,22 @@ $(RESULTS)/ldc2d/fig7_runs.done: FORCE | $(VENV)
 fig6-runs: $(RESULTS)/ldc2d/fig6_runs.done
 fig7-runs: $(RESULTS)/ldc2d/fig7_runs.done
 
-fig6: $(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv $(RESULTS)/fig6/fig6.gif
-$(RESULTS)/fig6/fig6.png $(RESULTS)/fig6/fig6.pdf $(RESULTS)/fig6/metrics.csv &: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
-	$(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS)
+# Each figure rule runs on every make through $(DELIVER) (sph.harness.deliver): re-plotted only when
+# the figure's current runs (its stamp), the scripts or the figure's own files differ from what it was made from.
+FIG6_OUT := $(addprefix $(RESULTS)/fig6/,fig6.png fig6.pdf metrics.csv)
+FIG7_OUT := $(addprefix $(RESULTS)/fig7/,fig7.png fig7.pdf metrics.csv)
 
-fig7: $(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv
-$(RESULTS)/fig7/fig7.png $(RESULTS)/fig7/fig7.pdf $(RESULTS)/fig7/metrics.csv &: $(RESULTS)/ldc2d/fig7_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py
-	$(PY) $(LDC2D)/plot.py --fig fig7 --profile $(PROFILE) --results $(RESULTS)
+fig6: $(FIG6_OUT) $(RESULTS)/fig6/fig6.gif
+$(FIG6_OUT): OUTS := $(FIG6_OUT)
+$(FIG6_OUT) &: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS)
+
+fig7: $(FIG7_OUT)
+$(FIG7_OUT): OUTS := $(FIG7_OUT)
+$(FIG7_OUT) &: $(RESULTS)/ldc2d/fig7_runs.done $(LDC2D)/config.yaml $(LDC2D)/analysis.py $(LDC2D)/plot.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(LDC2D)/plot.py --fig fig7 --profile $(PROFILE) --results $(RESULTS)
 
 LDC2D_GIF_METHOD ?= tvf
-$(RESULTS)/fig6/fig6.gif: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/plot.py sph/harness/animate.py
-	$(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS) --gif $@ --method $(LDC2D_GIF_METHOD)
+$(RESULTS)/fig6/fig6.gif: OUTS := $(RESULTS)/fig6/fig6.gif
+$(RESULTS)/fig6/fig6.gif: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/plot.py sph/harness/animate.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS) --gif $@ --method $(LDC2D_GIF_METHOD)

@@ -121,6 +121,11 @@ def write_metrics(exp: "S.Experiment", results) -> None:
 def run_all(exp: "S.Experiment", results, methods=None, dxs=None, progress: bool = True, log_every: int = 0):
     """Every (dx, method) of the profile (optionally a subset); returns the metrics rows."""
     t0 = time.perf_counter()
+    for dx in exp.dx if dxs is None else dxs:  # before anything is built: a dx that cannot fit is refused now
+        for m in exp.methods:
+            if methods is None or m.name in methods:
+                runs.check_fits(f"ldc2d {m.name} at dx = {dx:g}", (round(1.0 / dx) + 2 * exp.wall_layers) ** 2, 2, dx,
+                                exp.numerics_of(m))
     rows = []
     for dx in exp.dx if dxs is None else dxs:
         for m in exp.methods:

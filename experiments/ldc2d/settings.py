@@ -11,7 +11,7 @@ from typing import Optional
 
 import sph
 from sph.cases import ldc
-from sph.harness.configtools import from_mapping, load_profile, merge, require, require_finite, to_mapping
+from sph.harness.configtools import from_mapping, load_profile, merge, require, require_agree, require_finite, to_mapping
 from sph.harness.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
@@ -108,8 +108,8 @@ class Experiment:
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
         require(self.frames >= 1, "frames", f"must be >= 1, got {self.frames}")
         require(self.lid_velocity > 0, "lid_velocity", f"must be positive, got {self.lid_velocity}")
-        require(self.lid_velocity <= self.material.u_ref, "lid_velocity",
-                f"must not exceed material.u_ref ({self.material.u_ref}), which sets the sound speed")
+        require_agree(self.lid_velocity <= self.material.u_ref, ("lid_velocity", "material.u_ref"),
+                      f"must not exceed material.u_ref ({self.material.u_ref}), which sets the sound speed")
         require(self.wall_layers >= 1, "wall_layers", f"must be >= 1, got {self.wall_layers}")
         require(self.lid_corners in LID_CORNERS, "lid_corners",
                 f"{self.lid_corners!r} is not one of {list(LID_CORNERS)}")
@@ -126,9 +126,10 @@ class Experiment:
                 f"must be positive: the cavity's Re = rho_ref lid_velocity / eta needs a viscosity, got {self.material.eta}")
         require(self.ghia_re in ldc.GHIA_RE, "ghia_re",
                 f"not a Reynolds number of Ghia's tables, got {self.ghia_re}")
-        require(abs(self.re - self.ghia_re) <= 1e-9 * self.ghia_re, "material.eta",
-                f"Re = rho_ref lid_velocity / eta = {self.re:g} differs from ghia_re = {self.ghia_re}: the "
-                f"profiles would be compared with the wrong table")
+        require_agree(abs(self.re - self.ghia_re) <= 1e-9 * self.ghia_re,
+                      ("ghia_re", "material.eta", "material.rho_ref", "lid_velocity"),
+                      f"Re = rho_ref lid_velocity / eta = {self.re:g} differs from ghia_re = {self.ghia_re}: the "
+                      f"profiles would be compared with the wrong table; change one of them to match the other")
 
     @property
     def re(self) -> float:

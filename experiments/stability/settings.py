@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.harness.configtools import ConfigError, from_mapping, merge, profile_mapping, require, require_finite, to_mapping
+from sph.harness.configtools import (ConfigError, from_mapping, merge, profile_mapping, require, require_finite,
+                                     require_name, to_mapping)
 from sph.harness.keys import code_fingerprint, digest
 from sph.relax import Relaxation
 
@@ -156,6 +157,7 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Suite:
             continue
         if not isinstance(spec, dict):
             raise ConfigError(f"{where}.cases.{name}: expected a mapping, got {spec!r}")
+        require_name(str(name), f"{where}.cases.{name}")  # the case's folder name
         parsed.append((str(name), from_mapping(Case, merge(defaults, spec), f"{where}.cases.{name}")))
     return Suite(profile=profile, cases=tuple(parsed))
 

@@ -13,9 +13,11 @@ $(_runs): DIR := $(_dir)
 $(_runs): FORCE | $(VENV)
 	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
 
-$(_figs)/fig9/fig9.png $(_figs)/fig9/fig9.pdf $(_figs)/fig9/metrics.csv: DIR := $(_dir)
-$(_figs)/fig9/fig9.png $(_figs)/fig9/fig9.pdf $(_figs)/fig9/metrics.csv &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py
-	$(PY) $(DIR)/plot_fig9.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
+_fig9 := $(_figs)/fig9/fig9.png $(_figs)/fig9/fig9.pdf $(_figs)/fig9/metrics.csv
+$(_fig9): DIR := $(_dir)
+$(_fig9): OUTS := $(_fig9)
+$(_fig9) &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(DIR)/plot_fig9.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 .PHONY: $(_name)
 $(_name): $(_figs)/fig9/fig9.png

@@ -81,7 +81,10 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
 
 
 def run_all(exp: "S.Experiment", results, methods=None, ns=None, progress: bool = True) -> pd.DataFrame:
-    """Every (resolution, method) of the profile (optionally a subset); returns the metrics rows."""
+    """Every (resolution, method) of the profile (optionally a subset); returns the metrics rows. Every
+    resolution is checked against the available memory first, before anything is relaxed or run."""
+    for n in exp.n_side if ns is None else ns:
+        runs.check_fits(f"tgv3d at n = {n} ({n ** 3:,} particles)", n ** 3, 3, exp.dx(n), exp.numerics)
     return sweep(S.STUDY, results, exp.n_side if ns is None else ns, exp.methods,
                  lambda m, n: run_one(exp, m, n, results, progress), only=methods)
 

@@ -19,10 +19,17 @@ $(THERMAL_SINE): FORCE | $(VENV)
 $(THERMAL_CHAN): FORCE | $(VENV)
 	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(THERMAL)/run.py --task channel --profile $(PROFILE) --results $(RESULTS)
 
-heat-validation: $(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/metrics.csv
-$(RESULTS)/heat_validation/heat_validation.png $(RESULTS)/heat_validation/heat_validation.pdf $(RESULTS)/heat_validation/metrics.csv &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py
-	$(PY) $(THERMAL)/plot_heat_validation.py --profile $(PROFILE) --results $(RESULTS)
+# the figures run on every make through $(DELIVER) (sph.harness.deliver): re-plotted only when the
+# current runs (the stamps), the scripts or the figures' own files differ from what they were made from
+HEAT_OUT  := $(addprefix $(RESULTS)/heat_validation/,heat_validation.png heat_validation.pdf metrics.csv)
+FIG10_OUT := $(addprefix $(RESULTS)/fig10/,fig10.png fig10.pdf fig10_series.png metrics.csv series.csv)
 
-fig10: $(RESULTS)/fig10/fig10.png $(RESULTS)/fig10/fig10.pdf $(RESULTS)/fig10/metrics.csv heat-validation
-$(RESULTS)/fig10/fig10.png $(RESULTS)/fig10/fig10.pdf $(RESULTS)/fig10/fig10_series.png $(RESULTS)/fig10/metrics.csv $(RESULTS)/fig10/series.csv &: $(THERMAL_CHAN) $(THERMAL)/plot_fig10.py
-	$(PY) $(THERMAL)/plot_fig10.py --profile $(PROFILE) --results $(RESULTS)
+heat-validation: $(HEAT_OUT)
+$(HEAT_OUT): OUTS := $(HEAT_OUT)
+$(HEAT_OUT) &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(THERMAL)/plot_heat_validation.py --profile $(PROFILE) --results $(RESULTS)
+
+fig10: $(FIG10_OUT) heat-validation
+$(FIG10_OUT): OUTS := $(FIG10_OUT)
+$(FIG10_OUT) &: $(THERMAL_CHAN) $(THERMAL)/plot_fig10.py FORCE | $(VENV)
+	$(DELIVER) $(PY) $(THERMAL)/plot_fig10.py --profile $(PROFILE) --results $(RESULTS)

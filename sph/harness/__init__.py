@@ -8,7 +8,8 @@
   io.py, xdmf.py   trajectory files (LagrangeBench layout, resumable) and their ParaView sidecars
   animate.py       a short GIF of a trajectory
   cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
-  stamp.py         make stamps that change only when a run step changed its outputs
+  stamp.py         make stamps: a run step's manifest of exactly the current runs (note_current)
+  deliver.py       deliverables verified on every make: re-made when their inputs or files differ
   xla_cpu.py       XLA's CPU flags for the pair sums, set by the entry points
   layout.py        where a study writes (results/<profile>/<name>/<method>_<tag>/) and its code key
   study.py         a study's methods, relaxed periodic starts, run spec and sweep (TGV 2D / 3D)

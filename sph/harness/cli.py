@@ -21,8 +21,14 @@ its result. If it raises
     SimulationError           (BlowUp, ParticleEscaped, NeighborOverflow: step, particle, position,
                               likely cause, where the last good frame is kept) prints
                               "error: <message>" and exits 3
+    io.OutputError            (a result file missing or damaged: a trajectory, a metrics table)
+                              prints "error (damaged file): <file>: <what>; <what to do>", exits 4
+    KeyboardInterrupt         (Ctrl-C) prints "interrupted: <script> stopped; ... resume with the
+                              same command" and exits 130
 
-on stderr, without a traceback (set SPH_TRACEBACK=1 to see it). Everything else propagates.
+on stderr, without a traceback (set SPH_TRACEBACK=1 to see it). Everything else propagates. A bad
+command line (an unknown option, an option such as `--only` given without a value) is one line too,
+"error (usage): ...", exit 2.
 `format_error(e)` is the line it prints. `select(option, given, allowed)` checks a command-line
 subset (`--only`, `--dx`) against the profile's own values.
 """
@@ -35,36 +41,86 @@ import numpy as np
 
 from ..diagnostics import SimulationError
 from ..errors import ConfigError
+from .io import OutputError
 from .xla_cpu import set_cpu_defaults
 
 EXIT_CONFIG = 2
 EXIT_SIMULATION = 3
+EXIT_OUTPUT = 4
+EXIT_INTERRUPTED = 130
 
 
 def format_error(e: BaseException) -> str:
     """One line: the error's message with newlines folded, prefixed by its kind."""
-    kind = "config error" if isinstance(e, ConfigError) else f"{type(e).__name__}"
+    if isinstance(e, ConfigError):
+        kind = "config error"
+    elif isinstance(e, OutputError):
+        kind = "damaged file"
+    else:
+        kind = f"{type(e).__name__}"
     text = " ".join(str(e).split())
     return f"error ({kind}): {text}"
 
 
+def interrupted_line() -> str:
+    """What Ctrl-C prints: the script stopped, what it finished is kept, how to go on."""
+    script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "python"
+    return (f"interrupted: {script} stopped; finished runs and frames are kept, an unfinished run resumes "
+            "from its last checkpoint: resume with the same command")
+
+
 def main_guard(fn, *args, **kwargs):
     """Run `fn(*args, **kwargs)` after setting XLA's CPU defaults; ConfigError -> one line on stderr
-    and exit code 2, SimulationError -> one line and exit code 3 (see the module docstring).
-    Returns fn's result otherwise."""
+    and exit code 2, SimulationError -> 3, a damaged result file (io.OutputError) -> 4, Ctrl-C -> one
+    line and 130 (see the module docstring). Returns fn's result otherwise."""
     set_cpu_defaults()
     try:
         return fn(*args, **kwargs)
-    except (ConfigError, SimulationError) as e:
+    except KeyboardInterrupt:
+        if os.environ.get("SPH_TRACEBACK"):
+            raise
+        print(interrupted_line(), file=sys.stderr, flush=True)
+        raise SystemExit(EXIT_INTERRUPTED) from None
+    except (ConfigError, SimulationError, OutputError) as e:
         if os.environ.get("SPH_TRACEBACK"):
             raise
         print(format_error(e), file=sys.stderr, flush=True)
-        raise SystemExit(EXIT_CONFIG if isinstance(e, ConfigError) else EXIT_SIMULATION) from None
+        code = EXIT_CONFIG if isinstance(e, ConfigError) else EXIT_SIMULATION if isinstance(e, SimulationError) \
+            else EXIT_OUTPUT
+        raise SystemExit(code) from None
+
+
+def _excepthook(kind, value, tb, _default=sys.excepthook):
+    """Ctrl-C outside `main_guard` (while a script imports, or in a script without it): one line, no
+    traceback; everything else as Python prints it."""
+    if issubclass(kind, KeyboardInterrupt) and not os.environ.get("SPH_TRACEBACK"):
+        print(interrupted_line(), file=sys.stderr, flush=True)
+        return
+    _default(kind, value, tb)
+
+
+sys.excepthook = _excepthook
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors ("error (usage): ...", exit 2) and no option left without the
+    values it needs: `--only` with nothing after it is an error, not "run nothing"."""
+
+    def error(self, message):
+        print(f"error (usage): {self.prog}: {message} (see --help)", file=sys.stderr, flush=True)
+        raise SystemExit(EXIT_CONFIG)
+
+    def parse_args(self, args=None, namespace=None):
+        ns = super().parse_args(args, namespace)
+        for a in self._actions:
+            if a.option_strings and a.nargs in ("*", "+") and getattr(ns, a.dest, None) == []:
+                self.error(f"{a.option_strings[0]} needs at least one value; leave it out to mean all")
+        return ns
 
 
 def profile_parser(doc: Optional[str], options: Optional[Callable] = None) -> argparse.ArgumentParser:
     """The parser of a script: `--profile`, `--results` and the options `options(parser)` adds."""
-    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = _Parser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--profile", default="paper", help="profile of the config file (default paper)")
     ap.add_argument("--results", default=None, help="results folder (default results/<profile>)")
     if options is not None:
@@ -91,6 +147,9 @@ def select(option: str, given: Optional[list], allowed: list) -> Optional[list]:
     on load, is the only place that defines runs (`--dx 0.03` cannot bypass its rules)."""
     if given is None:
         return None
+    if not given:
+        raise ConfigError(f"{option}: given without a value: name at least one of {list(allowed)}, or leave "
+                          "the option out to mean all")
     out = []
     for g in given:
         match = [a for a in allowed if (np.isclose(a, g, rtol=1e-9, atol=0) if isinstance(a, float) else a == g)]

@@ -20,6 +20,31 @@ import yaml
 from ..errors import ConfigError, is_finite_number, require, require_finite  # noqa: F401  (re-exported)
 
 
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+"""What a method, case or run name may be: it becomes a folder or file name (results/<profile>/<study>/
+<method>_dx0.02), so nothing that can leave that folder (a slash, "..") or needs quoting."""
+
+
+def require_name(value, key: str) -> str:
+    """`value` if it is a name (NAME: letters, digits, _ and -, not starting with a digit or -), else a
+    ConfigError naming `key`."""
+    if not isinstance(value, str) or not NAME.fullmatch(value):
+        raise ConfigError(f"{key}: {value!r} is not a name: it becomes a folder name, so use letters, digits, "
+                          "_ and - only, starting with a letter or _ (e.g. tvf_fine)")
+    return value
+
+
+def require_agree(cond: bool, keys, msg: str) -> None:
+    """Like `require`, for a rule between several keys (e.g. ghia_re and material.eta): the error
+    names all of `keys`; `load_profile` puts the one changed since the last commit (else the one
+    written closest to the profile asked for) first, so a user who edited one of them is not told
+    to change the other."""
+    if not cond:
+        e = ConfigError(f"{keys[0]}: {msg}")
+        e.disagreeing = tuple(keys)
+        raise e
+
+
 def _check_type(value, tp, key, allow_inf: bool = False):
     """`value` checked against type hint `tp` (and converted: a list to a tuple, a mapping to its
     dataclass, an int to a float); a ConfigError naming `key` when it does not match."""
@@ -112,6 +137,8 @@ def from_mapping(cls, data, where: str = ""):
         # a field may accept +-inf with dataclasses.field(metadata={"allow_inf": True}); NaN never
         allow_inf = bool(fields[name].metadata.get("allow_inf", False))
         kwargs[name] = _check_type(value, hints[name], prefix + name, allow_inf)
+        if name == "name" and hints[name] is str:  # a method's / case's name becomes a folder name
+            require_name(kwargs[name], prefix + name)
     missing = [n for n, f in fields.items() if n not in kwargs and f.default is dataclasses.MISSING
                and f.default_factory is dataclasses.MISSING]
     if missing:
@@ -123,22 +150,48 @@ def from_mapping(cls, data, where: str = ""):
         if prefix and not msg.startswith(prefix):
             # classes name their own keys as "<section>.<key>"; drop the section if `where` ends with it
             section = where.split(".")[-1] + "."
-            if msg.startswith(section):
-                msg = msg[len(section):]
-            raise ConfigError(prefix + msg) from None
+
+            def local(k):
+                return prefix + (k[len(section):] if k.startswith(section) else k)
+
+            err = ConfigError(local(msg))
+            if getattr(e, "disagreeing", None):
+                err.disagreeing = tuple(local(k) for k in e.disagreeing)
+            raise err from None
         raise
 
 
 def load_yaml(path) -> dict:
     """Read a YAML mapping; an empty file is an empty mapping."""
     path = Path(path)
-    with path.open() as f:
-        data = yaml.safe_load(f)
+    try:
+        with path.open() as f:
+            data = yaml.safe_load(f)
+    except yaml.YAMLError as e:
+        raise yaml_error(path, e) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{path}: cannot read the config file ({type(e).__name__}: {e})", file=str(path)) from None
     if data is None:
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping at the top level")
     return data
+
+
+def yaml_error(path, e: "yaml.YAMLError") -> ConfigError:
+    """A YAML syntax error as one ConfigError "<file>:<line>: <problem> (<context>); <hint>", the line
+    (1-based) where the parser found the problem."""
+    mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+    where = f"{path}:{mark.line + 1}" if mark is not None else str(path)
+    problem = " ".join(str(getattr(e, "problem", None) or e).split())
+    context = " ".join(str(getattr(e, "context", None) or "").split())
+    cmark = getattr(e, "context_mark", None)
+    if context and cmark is not None and mark is not None and cmark.line != mark.line:
+        context += f" started at line {cmark.line + 1}"
+    hint = "YAML indents with spaces, never tabs" if "'\\t'" in problem or "\t" in problem \
+        else "check the brackets, quotes and indentation there"
+    text = f"{where}: YAML syntax error: {problem}" + (f" ({context})" if context else "") + f"; {hint}"
+    return ConfigError(text, file=str(path))
 
 
 def merge(base: dict, override: dict) -> dict:
@@ -234,7 +287,81 @@ def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
     try:
         return from_mapping(cls, mapping, f"profiles.{profile}")
     except ConfigError as e:
+        if getattr(e, "disagreeing", None):
+            raise locate_disagreement(e, path, profile, mapping, origins) from None
         raise locate(e, path, profile, origins) from None
+
+
+_MISSING = object()
+
+
+def _value_at(mapping, parts: tuple):
+    for p in parts:
+        if isinstance(p, int):
+            if not isinstance(mapping, list) or p >= len(mapping):
+                return _MISSING
+            mapping = mapping[p]
+        else:
+            if not isinstance(mapping, dict) or p not in mapping:
+                return _MISSING
+            mapping = mapping[p]
+    return mapping
+
+
+def committed_profile(path, profile: str) -> Optional[dict]:
+    """The merged mapping of `profile` in the last committed version of the YAML file `path` (git
+    HEAD), or None (no git, not committed, no such profile then)."""
+    import subprocess
+
+    path = Path(path).resolve()
+    try:
+        top = subprocess.run(["git", "-C", str(path.parent), "rev-parse", "--show-toplevel"], capture_output=True,
+                             text=True, timeout=10)
+        if top.returncode != 0:
+            return None
+        rel = path.relative_to(Path(top.stdout.strip()).resolve()).as_posix()
+        shown = subprocess.run(["git", "-C", top.stdout.strip(), "show", f"HEAD:{rel}"], capture_output=True,
+                               text=True, timeout=10)
+        if shown.returncode != 0:
+            return None
+        return _resolve_profile((yaml.safe_load(shown.stdout) or {}).get("profiles") or {}, profile, ())[0]
+    except Exception:  # noqa: BLE001  (a best-effort hint: any failure means "unknown")
+        return None
+
+
+def locate_disagreement(error: ConfigError, path, profile: str, mapping: dict, origins: dict) -> ConfigError:
+    """A rule between several keys broken (`require_agree`): "<file>: profiles.<p>.<key>: <rule> (the
+    keys that disagree: <key> = <v> (changed since the last commit); <other> = <w>)", the key changed
+    since the last commit first (then the one written closest to the profile asked for: the command
+    line, the profile itself, an inherited one), only keys the config writes (all if it writes none)."""
+    head = f"profiles.{profile}."
+    keys = [k[len(head):] if k.startswith(head) else k for k in error.disagreeing]
+    msg = str(error)
+    rest = msg.split(": ", 1)[1] if ": " in msg else msg
+    written = [k for k in keys if _value_at(mapping, key_path(k)) is not _MISSING] or keys
+    committed = committed_profile(path, profile)
+    closeness = {"command line": 0, profile: 1}
+
+    def changed(k):
+        return committed is not None and _value_at(committed, key_path(k)) != _value_at(mapping, key_path(k))
+
+    order = sorted(written, key=lambda k: (not changed(k), closeness.get(key_origin(origins, k, profile), 2),
+                                           keys.index(k)))
+
+    def full(k):
+        origin = key_origin(origins, k, default=profile)
+        return k if origin == "command line" else f"profiles.{origin}.{k}"
+
+    def value(k):
+        v = _value_at(mapping, key_path(k))
+        return f"{k} = {v!r}" if v is not _MISSING else f"{k} (default)"
+
+    tag = (" (set on the command line)" if key_origin(origins, order[0]) == "command line"
+           else " (changed since the last commit)" if changed(order[0]) else "")
+    named = "; ".join([value(order[0]) + tag] + [value(k) for k in order[1:]])
+    text = f"{path}: {full(order[0])}: {rest} (the keys that disagree: {named})"
+    return ConfigError(text, file=str(path), profile=profile, origin=key_origin(origins, order[0], profile),
+                       key=order[0])
 
 
 def _paths(d: dict, prefix: tuple = ()):

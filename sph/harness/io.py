@@ -30,12 +30,22 @@ import numpy as np
 
 from ..simulate import SERIES  # noqa: F401  (the per-frame series the driver records)
 from ..state import ParticleState
+from .deliver import note_input
 
 FIELDS = {"position": "r", "velocity": "v", "momentum_velocity": "u", "density": "rho", "pressure": "p",
           "temperature": "T"}
 """Per-particle trajectory datasets and the ParticleState field each one stores."""
 
 DEFAULT_KEEP = ("velocity", "density", "pressure")
+
+
+class OutputError(OSError, RuntimeError):
+    """A result file is missing, damaged or incomplete; the message names the file and what to do
+    (`sph.harness.cli.main_guard` prints it as one line)."""
+
+
+class MissingOutput(FileNotFoundError, OutputError):
+    """A result file that an earlier step writes is not there (yet)."""
 
 
 class TrajectoryWriter:
@@ -200,13 +210,14 @@ def load_checkpoint(path, traj: str = "00000"):
 def read_trajectory(path, traj: str = "00000") -> dict:
     """Every dataset of a trajectory (checkpoint excluded) as numpy arrays, plus its attrs under
     'attrs'."""
+    note_input(path)  # a deliverable made from it is re-made when it changes (sph.harness.deliver)
     try:
         with h5py.File(path, "r") as f:
             g = f[traj]
             out = {k: g[k][...] for k in g.keys() if isinstance(g[k], h5py.Dataset)}
             out["attrs"] = dict(g.attrs)
-    except (OSError, KeyError) as e:
-        raise OSError(f"{path}: cannot read trajectory {traj} ({e}); the file is damaged or incomplete: "
+    except (OSError, KeyError, ValueError, TypeError) as e:
+        raise OutputError(f"{path}: cannot read trajectory {traj} ({e}); the file is damaged or incomplete: "
                       "re-run its experiment (its run script, which make calls, sets it aside and redoes the run)") from None
     return out
 

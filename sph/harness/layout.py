@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
+from .configtools import require_name
 from .keys import code_fingerprint
 
 
@@ -32,6 +33,9 @@ class Study:
         return Path(results) / self.name
 
     def run_dir(self, results, method: str, tag: str) -> Path:
+        """<results>/<name>/<method>_<tag>; a method that is not a name (configtools.NAME, e.g. one
+        built in Python with a slash) is a ConfigError: no run writes outside its study's folder."""
+        require_name(method, "method name")
         return self.out_dir(results) / f"{method}_{tag}"
 
     def relaxed_path(self, results, tag: str) -> Path:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import io
+from .stamp import note_current
 
 RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
                   "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb")
@@ -40,3 +41,4 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
 def save_record(folder, rec: dict) -> None:
     """Write the run record as record.json in the run folder (what `make accuracy` gathers)."""
     io.write_metadata(Path(folder) / "record.json", rec)
+    note_current(folder)

@@ -28,6 +28,7 @@ from . import io, xdmf
 from .lock import folder_lock
 from .configtools import to_mapping
 from .io import read_metadata
+from .stamp import note_current
 
 
 def write_every_for(n_steps: int, frames: Optional[int] = None, frame_dt: Optional[float] = None,
@@ -90,6 +91,19 @@ class RunOutcome:
     result: Optional[simulate.RunResult] = None
 
 
+def check_fits(where: str, n: int, dim: int, dx: float, numerics) -> int:
+    """Refuse, from the config alone (no scene, no array, no relaxation built), a run of `n` particles
+    at spacing `dx` with `numerics` that cannot fit into the available memory: the same estimate as
+    `sph.build_solver`'s (sph.checks.check_memory, neighbour_slots), made before a study builds or
+    relaxes anything, so a resolution that does not fit is refused in seconds. Returns the bytes."""
+    from ..checks import check_memory, neighbour_slots
+    from ..kernels import make_kernel
+
+    cutoff = make_kernel(numerics.kernel, numerics.h_factor * dx, dim).cutoff
+    slots = neighbour_slots(cutoff, numerics.skin_factor * dx, dx, dim, numerics.capacity_multiplier)
+    return check_memory(int(n), dim, slots, np.dtype(numerics.dtype).itemsize, where, dx)
+
+
 def stored_state(spec: RunSpec) -> str:
     """"current" (complete, readable, same inputs, every frame present), "partial" (same inputs,
     resumable from its checkpoint), "absent", "stale" (other inputs) or "damaged" (unreadable)."""
@@ -109,13 +123,39 @@ def stored_state(spec: RunSpec) -> str:
     return "partial" if status["checkpoint_step"] is not None else "damaged"
 
 
-def _set_aside(path: Path, why: str) -> None:
-    n = 0
-    while path.with_name(f"{path.name}.stale-{n}").exists():
-        n += 1
+KEEP_STALE = 3
+"""How many set-aside copies (``<file>.stale-<n>``) of one file are kept: the newest ones."""
+
+
+def _set_aside(path: Path, why: str, then: str = "running from scratch") -> None:
+    """Rename `path` to the next ``<name>.stale-<n>`` and say so in one line; of its set-aside copies
+    only the newest KEEP_STALE stay (flipping a setting back and forth does not pile them up)."""
+    target, dropped = _move_aside(path)
+    extra = f"; removed older copies {', '.join(p.name for p in dropped)}" if dropped else ""
+    print(f"{path}: {why}; kept as {target.name}{extra}, {then}", flush=True)
+
+
+def _move_aside(path: Path):
+    """Rename `path` to the next ``<name>.stale-<n>``, drop the copies beyond the newest KEEP_STALE;
+    (the new copy, the removed ones)."""
+    olds = sorted(_stale_copies(path), key=lambda p: p[0])
+    n = olds[-1][0] + 1 if olds else 0
     target = path.with_name(f"{path.name}.stale-{n}")
     path.replace(target)
-    print(f"{path}: {why}; kept as {target.name}, running from scratch", flush=True)
+    dropped = [p for _, p in olds[:max(0, len(olds) + 1 - KEEP_STALE)]]
+    for p in dropped:
+        p.unlink(missing_ok=True)
+    return target, dropped
+
+
+def _stale_copies(path: Path) -> list:
+    """(n, path) of every ``<name>.stale-<n>`` beside `path`."""
+    out = []
+    for p in path.parent.glob(f"{path.name}.stale-*"):
+        tail = p.name[len(path.name) + len(".stale-"):]
+        if tail.isdigit():
+            out.append((int(tail), p))
+    return out
 
 
 def peak_rss_mb() -> float:
@@ -156,6 +196,7 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
     kind = stored_state(spec)
     label = spec.label
     if kind == "current":
+        note_current(spec.folder)
         print(f"{label}: complete, skipped", flush=True)
         return RunOutcome("skipped", Path(spec.folder))
     if kind in ("stale", "damaged"):
@@ -163,15 +204,15 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
     solver = make_solver()
     n_steps = solver.n_steps(spec.t_end)
     write_every = write_every_for(n_steps, spec.frames, spec.frame_dt, solver.dt)
-    resume = kind == "partial"
+    resumed = _open_checkpoint(spec, solver) if kind == "partial" else None
+    resume = resumed is not None
     if resume:
-        writer = io.TrajectoryWriter.open(spec.traj)
+        writer, (state, nbrs, step0) = resumed
     else:
         writer = io.TrajectoryWriter.create(spec.traj, solver.scene.tag, solver.scene.dim, dtype=solver.dtype,
                                             keep=spec.keep, attrs={"fingerprint": spec.fingerprint})
     with writer:
         if resume:
-            state, nbrs, step0 = simulate.resume(solver, writer)
             print(f"{label}: resuming at step {step0} of {n_steps}", flush=True)
         else:
             state, nbrs = initial_state(solver) if initial_state is not None else solver.init_fn()
@@ -189,9 +230,27 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
         io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every, **stats, **timings))
         writer.mark_complete(**timings)  # last: a run is complete only once its metadata is written
     xdmf.write_sidecar(spec.traj)
+    note_current(spec.folder)
     print(f"{label}: {res.n_steps} steps of {solver.scene.n} particles in {res.wall_s:.2f} s "
           f"({res.ms_per_step:.2f} ms/step), compile {res.compile_s:.2f} s", flush=True)
     return RunOutcome("resumed" if resume else "run", Path(spec.folder), res)
+
+
+def _open_checkpoint(spec: RunSpec, solver):
+    """(writer, (state, nbrs, step)) of a run that stopped part-way, or None when its checkpoint cannot
+    be read or does not fit the solver (then the file is set aside, naming it, and the run starts over)."""
+    writer = None
+    try:
+        writer = io.TrajectoryWriter.open(spec.traj)
+        state, nbrs, step0 = simulate.resume(solver, writer)
+        if state.r.shape != (solver.scene.n, solver.scene.dim):
+            raise ValueError(f"checkpoint holds {state.r.shape[0]} particles, the scene {solver.scene.n}")
+        return writer, (state, nbrs, step0)
+    except (OSError, KeyError, ValueError, TypeError, AttributeError) as e:
+        if writer is not None:
+            writer.close()
+        _set_aside(spec.traj, f"damaged checkpoint ({' '.join(str(e).split())[:160]})")
+        return None
 
 
 def cached_row(folder, key: str, compute: Callable) -> dict:
@@ -199,7 +258,8 @@ def cached_row(folder, key: str, compute: Callable) -> dict:
     fingerprint, the analysis settings and code) differs from the one stored in metrics_row.json."""
     path = Path(folder) / "metrics_row.json"
     stored = read_metadata(path)
-    if stored is not None and stored.get("key") == key:
+    note_current(path)
+    if stored is not None and stored.get("key") == key and isinstance(stored.get("row"), dict):
         return stored["row"]
     row = compute()
     io.write_metadata(path, {"key": key, "row": row})
@@ -207,28 +267,65 @@ def cached_row(folder, key: str, compute: Callable) -> dict:
 
 
 def cached_positions(path, fingerprint: str, compute: Callable, label: str, **meta) -> np.ndarray:
-    """Initial positions (e.g. a relaxation, sph.relax) cached in `path` (.npy) with a .json sidecar:
-    reused when the sidecar holds `fingerprint`, else `compute()` -> (r, info) runs and both files are
-    written (the array atomically; `meta` and `info` go into the sidecar). Prints one summary line."""
+    """Initial positions (e.g. a relaxation, sph.relax) cached in `path` (.npy) with a .json sidecar
+    that says what they were made for: the config and code (`fingerprint`), `meta` (e.g. dx, n_side,
+    relaxation) and the array's shape (particle count, dimension). Reused only when all of these
+    match and the array is readable and finite; a cache made for something else, or damaged, is set
+    aside (``.stale-<n>``) with one line naming the file and what differs, and `compute()` -> (r, info)
+    runs again; both files are then written (the array atomically; `meta` and `info` go into the
+    sidecar). Prints one summary line."""
     path = Path(path)
     with folder_lock(path.parent, name=f".{path.stem}.lock"):  # one writer at a time (make -j2)
         return _positions_locked(path, fingerprint, compute, label, **meta)
 
 
+def _cache_mismatch(path: Path, side: Path, fingerprint: str, meta: dict):
+    """(positions, None) when the cache at `path` was made for these inputs, else (None, what differs)
+    (None, None) when there is no cache."""
+    if not path.exists():
+        return None, None
+    stored = read_metadata(side)
+    if stored is None:
+        return None, f"its sidecar {side.name} is missing or damaged"
+    for k, v in meta.items():
+        if k in stored and _plain(stored[k]) != _plain(v):
+            return None, f"made for {k} = {stored[k]!r}, not {v!r}"
+    if stored.get("fingerprint") != fingerprint:
+        return None, "made from another config or code"
+    try:
+        r = np.load(path)
+    except (ValueError, OSError, EOFError) as e:
+        return None, f"unreadable ({' '.join(str(e).split())[:120]})"
+    shape = stored.get("shape")
+    if shape is not None and list(r.shape) != list(shape):
+        return None, f"holds {r.shape[0]} particles of dimension {r.shape[-1]}, made for {shape[0]} of dimension {shape[-1]}"
+    if not np.all(np.isfinite(r)):
+        return None, "holds non-finite positions"
+    return r, None
+
+
+def _plain(v):
+    """A value as JSON would store it (tuples as lists, numpy scalars as Python ones)."""
+    import json
+
+    return json.loads(json.dumps(v, default=io._json_default))
+
+
 def _positions_locked(path: Path, fingerprint: str, compute: Callable, label: str, **meta) -> np.ndarray:
     side = path.with_suffix(".json")
-    stored = read_metadata(side) if path.exists() else None
-    if stored is not None and stored.get("fingerprint") == fingerprint:
-        try:
-            return np.load(path)
-        except (ValueError, OSError):
-            pass  # damaged: computed again below
+    r, why = _cache_mismatch(path, side, fingerprint, meta)
+    if r is not None:
+        return r
+    if why is not None:
+        _set_aside(path, f"cached start {why}", then="computing it again")
+        if side.exists():
+            _move_aside(side)
     r, info = compute()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.stem + ".tmp.npy")
     np.save(tmp, r)
     tmp.replace(path)
-    io.write_metadata(side, {"fingerprint": fingerprint, **meta, **info})
+    io.write_metadata(side, {"fingerprint": fingerprint, **meta, "shape": list(np.shape(r)), **info})
     nan = float("nan")
     print(f"{label}: {info.get('steps')} steps, max |rho/rho_ref - 1| {info.get('density_error_start', nan):.3g} -> "
           f"{info.get('density_error_end', nan):.3g}, u_max {info.get('u_max_end', nan):.3g}", flush=True)

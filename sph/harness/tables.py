@@ -4,6 +4,10 @@ the file."""
 from pathlib import Path
 from typing import Optional
 
+from .deliver import note_input
+from .io import MissingOutput, OutputError
+from .stamp import note_current
+
 
 def write_table(path, rows: list, sort: Optional[list] = None, ascending=True):
     """Rewrite the csv table `path` from `rows` (atomically). Returns the DataFrame. With no rows
@@ -13,6 +17,7 @@ def write_table(path, rows: list, sort: Optional[list] = None, ascending=True):
 
     df = pd.DataFrame(rows)
     path = Path(path)
+    note_current(path)  # the run step's stamp lists it (sph.harness.stamp)
     if df.empty:
         path.unlink(missing_ok=True)
         return df
@@ -29,11 +34,12 @@ def read_table(path):
     """A metrics csv written by `write_table`, with an error naming the file when it is damaged."""
     import pandas as pd
 
+    note_input(path)  # a deliverable made from it is re-made when it changes (sph.harness.deliver)
     if not Path(path).exists():
-        raise FileNotFoundError(f"{path}: no metrics table (no run of the current config has finished); run its "
+        raise MissingOutput(f"{path}: no metrics table (no run of the current config has finished); run its "
                                 "experiment first")
     try:
         return pd.read_csv(path)
     except Exception as e:  # pandas raises several types for empty, binary or malformed files
-        raise RuntimeError(f"{path}: damaged metrics table ({type(e).__name__}: {e}); re-run its experiment "
+        raise OutputError(f"{path}: damaged metrics table ({type(e).__name__}: {e}); re-run its experiment "
                            "(make rebuilds it from the trajectories)") from None

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..cases import tgv
+from ..lattice import count
 from ..solver import Solver, build_solver
 from . import io, runs
 from .configtools import to_mapping
@@ -94,6 +95,9 @@ def write_metrics(study: Study, exp: Experiment, results) -> pd.DataFrame:
 
 
 def run_all(study: Study, exp: Experiment, results, methods=None, dxs=None, progress: bool = True) -> pd.DataFrame:
-    """Every (dx, method) of the profile (optionally a subset); returns the metrics rows."""
+    """Every (dx, method) of the profile (optionally a subset); returns the metrics rows. Every spacing
+    is checked against the available memory first (runs.check_fits), before anything is relaxed or run."""
+    for dx in exp.dx if dxs is None else dxs:
+        runs.check_fits(f"{study.name} at dx = {dx:g}", count([0.0, 0.0], list(tgv.BOX), dx), 2, dx, exp.numerics)
     return sweep(study, results, exp.dx if dxs is None else dxs, exp.methods,
                  lambda m, dx: run_one(study, exp, m, dx, results, progress), only=methods)
