@@ -7,8 +7,8 @@ Times, at one resolution, with the same state and list:
   check        the neighbour update that does not rebuild (the skin test + `lax.cond`)
   build        one forced neighbour-list build with the list's capacities
   pairs        the pair geometry (dr, |r|, W, dW/dr / r over the K slots), materialised
-  density      density summation from given pairs
-  accel        the momentum equation (or the Riemann acceleration) from given pairs
+  density      the density pass (summation), in blocks as the step evaluates it (its geometry included)
+  accel        the force pass's momentum term (or the Riemann one), likewise
   step_nb      one jitted step without a rebuild (`step_fn` with a list whose skin test passes)
 
 and the neighbour statistics: K slots, mean real neighbours within the search radius and within
@@ -22,12 +22,13 @@ import dataclasses
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import sph
-import sph.pairs
-from sph import density, momentum, riemann
+import sph.blocks
+from sph.density import Summation
+from sph.momentum import Momentum
+from sph.riemann import RiemannMomentum
 from sph.rollout import make_chunk
 
 try:
@@ -92,16 +93,19 @@ def profile(scene, method, steps, repeats, numerics):
         moved = state.r.at[0, 0].add(solver.neighbors.skin)
         out["build"] = timed(update, moved, nbrs, repeats=repeats)
     out["pairs"] = timed(jax.jit(solver.pairs_fn), state.r, nbrs, repeats=repeats)
-    w0 = float(solver.kernel.w(0.0))
-    out["density"] = timed(jax.jit(lambda p, m: density.summation(p, m, w0)),
-                           pairs, state.mass, repeats=repeats)
+    fields = dict(r=state.r, u=state.u, u_visc=state.u, v_stress=state.v, rho=state.rho, p=state.p,
+                  mass=state.mass, vol=state.mass / state.rho)
+
+    def sweep(term):
+        return jax.jit(lambda nb, f: solver.sweep_fn(term, nb, **f))
+
+    out["density"] = timed(sweep(Summation(float(solver.kernel.w(0.0)))), nbrs, fields, repeats=repeats)
     eta = scene.material.eta
     if scene.effects.riemann:
-        acc = jax.jit(lambda p, s: riemann.acceleration(p, s.rho, s.p, s.u, s.mass, eta, solver.c_ref,
-                                                        solver.numerics.eta_limiter))
+        term = RiemannMomentum(eta, solver.c_ref, solver.numerics.eta_limiter)
     else:
-        acc = jax.jit(lambda p, s: momentum.acceleration(p, s.rho, s.p, s.u, s.v, s.mass, eta, scene.effects.tvf))
-    out["accel"] = timed(acc, pairs, state, repeats=repeats)
+        term = Momentum(eta, scene.effects.tvf)
+    out["accel"] = timed(sweep(term), nbrs, fields, repeats=repeats)
     # a step that does not rebuild: the list's reference is the position the step moves to
     r_next = solver.step_fn(state, nbrs, 1)[0].r
     nb_next = dataclasses.replace(nbrs, reference_position=r_next)
@@ -119,7 +123,7 @@ def main():
     ap.add_argument("--backend", default="cell_sort")
     ap.add_argument("--dtype", default="float64")
     ap.add_argument("--skin", type=float, default=None, help="numerics.skin_factor (default: Numerics')")
-    ap.add_argument("--block", type=int, default=None, help="sph.pairs.BLOCK_PAIRS (0: unblocked)")
+    ap.add_argument("--block", type=int, default=None, help="sph.blocks.BLOCK_PAIRS (0: unblocked)")
     args = ap.parse_args()
     sph.precision.enable_x64()
     kw = dict(dtype=args.dtype, neighbor_search=args.backend)
@@ -127,7 +131,7 @@ def main():
         kw["skin_factor"] = args.skin
     numerics = sph.Numerics(**kw)
     if args.block is not None:
-        sph.pairs.BLOCK_PAIRS = args.block or (1 << 62)
+        sph.blocks.BLOCK_PAIRS = args.block or (1 << 62)
     print(f"jax {jax.__version__}, {args.dim}D {args.method}, {args.backend}, {args.dtype}, skin {numerics.skin_factor} dx; "
           "ms: min / median")
     keys = ["chunk", "chunk_noguard", "chunk_noupdate", "check", "build", "pairs", "density", "accel", "step_nb"]
