@@ -6,7 +6,8 @@ from typing import Optional
 
 import sph
 from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import digest
+from sph.harness.layout import Study
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -126,19 +127,16 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def out_dir(results) -> Path:
-    """results/<profile>/gradcheck: the computed gradients and tables."""
-    return Path(results) / "gradcheck"
+# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+STUDY = Study("gradcheck", HERE)
+"""results/<profile>/gradcheck: the computed gradients and tables (metrics.csv among them); the code
+key of settings.py and run.py with the sph modules they and the solver import."""
+out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
 
 
 def check_path(results, case: str, dtype: str) -> Path:
     """Positions, AD and FD gradients and the eps sweep of one case and precision."""
     return out_dir(results) / f"{case}_{dtype}.npz"
-
-
-def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
 
 
 def sweep_path(results) -> Path:
@@ -155,14 +153,8 @@ def fig_dir(results) -> Path:
 
 
 # -- fingerprints ---------------------------------------------------------------------------------
-def code_hash() -> str:
-    """Hash of the code behind a result: settings.py, run.py and the sph modules they and the solver
-    import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
-    return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
-
-
 def check_fingerprint(exp: Experiment, case: Case, dtype: str) -> str:
     keys = ("dx", "material", "warmup_steps", "loss_steps", "eps_factor", "sweep_eps_factors", "sweep_directions",
             "seed", "extra_capacity", "wall_layers", "lid_velocity")
     return digest({"case": to_mapping(case), "dtype": dtype, "numerics": to_mapping(exp.numerics_for(dtype)),
-                   **{k: to_mapping(getattr(exp, k)) for k in keys}, "code": code_hash()})
+                   **{k: to_mapping(getattr(exp, k)) for k in keys}, "code": STUDY.code_hash("run.py")})

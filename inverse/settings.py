@@ -8,7 +8,8 @@ import numpy as np
 
 import sph
 from sph.harness.configtools import load_profile, require, require_agree, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import digest
+from sph.harness.layout import Study
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -161,14 +162,11 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def out_dir(results) -> Path:
-    """results/<profile>/inverse: the optimization results (run.py)."""
-    return Path(results) / "inverse"
-
-
-def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
+# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+STUDY = Study("inverse", HERE)
+"""results/<profile>/inverse: the optimization results of run.py (metrics.csv among them); the code
+key of settings.py, scene.py and run.py with the sph modules they and the solver import."""
+out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
 
 
 def paths_path(results) -> Path:
@@ -188,6 +186,5 @@ def fig_dir(results) -> Path:
 def fingerprint(exp: Experiment) -> str:
     """Inputs of run.py: the whole profile (path_optimizer and rmse_targets only affect the plot and
     the report, but hashing them too is harmless) and the code: settings.py, scene.py, run.py and the
-    sph modules they and the solver import (sph.harness.keys.code_fingerprint)."""
-    code = code_fingerprint([HERE / n for n in ("settings.py", "scene.py", "run.py")])
-    return digest({"experiment": to_mapping(exp), "code": code})
+    sph modules they and the solver import (`STUDY.code_hash`)."""
+    return digest({"experiment": to_mapping(exp), "code": STUDY.code_hash("scene.py", "run.py")})

@@ -7,7 +7,8 @@ from typing import Optional
 
 import sph
 from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import digest
+from sph.harness.layout import Study, dx_tag
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -154,31 +155,22 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def out_dir(results) -> Path:
-    """results/<profile>/<NAME> (dambreak2d for this folder)."""
-    return Path(results) / NAME
+# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+STUDY = Study(NAME, HERE)
+"""results/<profile>/<NAME>/<column>_dx<dx>/ per run, metrics.csv beside them; the code key of
+settings.py and run.py with the sph modules they and the solver import."""
+out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
 
 
 def run_dir(results, column: str, dx: float) -> Path:
-    return out_dir(results) / f"{column}_dx{dx:g}"
-
-
-def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
+    return STUDY.run_dir(results, column, dx_tag(dx))
 
 
 # -- fingerprints ---------------------------------------------------------------------------------
-def code_hash(*scripts: str) -> str:
-    """Hash of the code behind a run: settings.py, the named scripts of this folder and the sph modules
-    they and the solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
-    return code_fingerprint([HERE / n for n in ("settings.py", *scripts)])
-
-
 def run_fingerprint(exp: Experiment, column: Column) -> str:
     """What a trajectory depends on: the simulation settings and the code, not the evaluation keys
     (sensor, bands, figure), so changing those only re-evaluates."""
     return digest({"case": exp.case, "dx": exp.dx, "column": to_mapping(column), "tank": to_mapping(exp.tank),
                     "fluid": to_mapping(exp.fluid), "effects": to_mapping(exp.effects),
                     "numerics": to_mapping(exp.numerics), "hydrostatic_init": exp.hydrostatic_init,
-                    "frame_dt": exp.frame_dt, "keep": list(exp.keep), "code": code_hash("run.py")})
+                    "frame_dt": exp.frame_dt, "keep": list(exp.keep), "code": STUDY.code_hash("run.py")})

@@ -14,6 +14,8 @@ NAME = HERE.name
 """The experiment's name is its folder's: results go to results/<profile>/<NAME>."""
 CONFIG = HERE / "config.yaml"
 STUDY = Study(NAME, HERE)
+"""results/<profile>/<NAME>/<method>_dx<dx>/ per run, relaxed_dx<dx>.npy starts and metrics.csv beside
+them; the code key of settings.py and the named scripts (sph.harness.layout)."""
 
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
@@ -22,9 +24,7 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
 
 
 # -- paths ----------------------------------------------------------------------------------------
-def out_dir(results) -> Path:
-    """results/<profile>/<NAME> (tgv2d for this folder)."""
-    return STUDY.out_dir(results)
+out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
 
 
 def run_dir(results, method: str, dx: float) -> Path:
@@ -33,10 +33,6 @@ def run_dir(results, method: str, dx: float) -> Path:
 
 def relaxed_path(results, dx: float) -> Path:
     return STUDY.relaxed_path(results, dx_tag(dx))
-
-
-def metrics_path(results) -> Path:
-    return STUDY.metrics_path(results)
 
 
 # -- fingerprints (sph.harness.tgv2d: the settings and the code that can change the numbers) ----------

@@ -13,7 +13,8 @@ import numpy as np
 
 import sph
 from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from sph.harness.keys import digest
+from sph.harness.layout import Study, dx_tag
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -159,39 +160,26 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def dx_tag(dx: float) -> str:
-    return f"dx{dx:g}"
-
-
-def out_dir(results) -> Path:
-    """results/<profile>/thermal: the runs and the combined metrics."""
-    return Path(results) / NAME
+# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+STUDY = Study(NAME, HERE)
+"""results/<profile>/thermal/{sine,channel}_dx<dx>/ per run, metrics.csv beside them; the code key of
+settings.py and run.py with the sph modules they and the solver import."""
+out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
 
 
 def sine_dir(results, dx: float) -> Path:
-    return out_dir(results) / f"sine_{dx_tag(dx)}"
+    return STUDY.run_dir(results, "sine", dx_tag(dx))
 
 
 def channel_dir(results, dx: float) -> Path:
-    return out_dir(results) / f"channel_{dx_tag(dx)}"
-
-
-def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
+    return STUDY.run_dir(results, "channel", dx_tag(dx))
 
 
 # -- fingerprints ---------------------------------------------------------------------------------
-def code_hash() -> str:
-    """Hash of the code behind a run: this folder's settings.py and run.py and the sph modules they and
-    the solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
-    return code_fingerprint([HERE / n for n in ("settings.py", "run.py")])
-
-
 def sine_fingerprint(d: Diffusion, dx: float) -> str:
     cfg = {k: v for k, v in to_mapping(d).items() if k not in ("dx", "report_dx", "target_relerr")}
-    return digest({"study": "sine", "dx": dx, "cfg": cfg, "code": code_hash()})
+    return digest({"study": "sine", "dx": dx, "cfg": cfg, "code": STUDY.code_hash("run.py")})
 
 
 def channel_fingerprint(c: Channel) -> str:
-    return digest({"study": "channel", "cfg": to_mapping(c), "code": code_hash()})
+    return digest({"study": "channel", "cfg": to_mapping(c), "code": STUDY.code_hash("run.py")})
