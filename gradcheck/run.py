@@ -141,6 +141,21 @@ def run_fd_rows(fd, rows, chunk: int, shape, dtype, what: str):
 
 
 # -- the check ------------------------------------------------------------------------------------
+def timed_gradient(loss, r0, what: str):
+    """(loss, gradient in float64, seconds of one evaluation, compile seconds) of the jitted
+    value_and_grad of `loss` at r0: the first call compiles (and runs), the second is timed. An
+    overflowed rollout is an error naming `what`."""
+    value_and_grad = jax.jit(jax.value_and_grad(loss, has_aux=True))
+    t0 = time.perf_counter()
+    jax.block_until_ready(value_and_grad(r0))
+    t1 = time.perf_counter()
+    (l0, overflow), g = value_and_grad(r0)
+    jax.block_until_ready(g)
+    wall = time.perf_counter() - t1
+    _no_overflow(overflow, what)
+    return l0, np.asarray(g, np.float64), wall, max(t1 - t0 - wall, 0.0)
+
+
 def check_one(exp: "S.Experiment", case: "S.Case", dtype: str, results, force: bool = False) -> Path:
     """AD and FD gradients and the eps sweep of one case in one precision -> <case>_<dtype>.npz."""
     path = S.check_path(results, case.name, dtype)
@@ -160,15 +175,7 @@ def check_one(exp: "S.Experiment", case: "S.Case", dtype: str, results, force: b
     loss = make_loss(solver, start, nbrs, exp.loss_steps, step0=exp.warmup_steps)
     r0 = start.r[fluid]
 
-    value_and_grad = jax.jit(jax.value_and_grad(loss, has_aux=True))
-    t0 = time.perf_counter()
-    jax.block_until_ready(value_and_grad(r0))
-    t1 = time.perf_counter()
-    (l0, overflow), g_ad = value_and_grad(r0)
-    jax.block_until_ready(g_ad)
-    ad_s = time.perf_counter() - t1
-    _no_overflow(overflow, "the AD evaluation")
-    g_ad = np.asarray(g_ad, np.float64)
+    l0, g_ad, ad_s, ad_compile_s = timed_gradient(loss, r0, "the AD evaluation")
     if not np.all(np.isfinite(g_ad)):
         print(f"{case.name} {dtype}: WARNING: {int(np.sum(~np.isfinite(g_ad)))} of {g_ad.size} AD gradient "
               f"entries are not finite (README: float32 walls)", flush=True)
@@ -191,7 +198,7 @@ def check_one(exp: "S.Experiment", case: "S.Case", dtype: str, results, force: b
     np.savez(path, fingerprint=fp, r=np.asarray(start.r, np.float64), tag=np.asarray(solver.scene.tag),
              fluid=fluid, g_ad=g_ad, g_fd=g_fd, loss=float(l0), dt=solver.dt, eps=exp.eps,
              sweep_eps_factors=np.asarray(exp.sweep_eps_factors), sweep_fd=sweep, sweep_ad=sweep_ad,
-             ad_s=ad_s, ad_compile_s=max(t1 - t0 - ad_s, 0.0), fd_s=fd_s, fd_compile_s=fd_compile_s,
+             ad_s=ad_s, ad_compile_s=ad_compile_s, fd_s=fd_s, fd_compile_s=fd_compile_s,
              n_fd_evals=2 * len(rows))
     err = np.linalg.norm(g_ad - g_fd) / np.linalg.norm(g_fd)
     print(f"{case.name} {dtype}: {len(fluid)} fluid / {solver.scene.n} particles, E_kin = {float(l0):.6g}, "
@@ -267,15 +274,7 @@ def growth_one(exp: "S.Experiment", case: "S.Case", solver, state0, nbrs, n: int
     segments = math.isqrt(n)
     loss = make_loss(solver, state0, nbrs, n, step0=0, segments=segments)
     r0 = state0.r[fluid]
-    value_and_grad = jax.jit(jax.value_and_grad(loss, has_aux=True))
-    t0 = time.perf_counter()
-    jax.block_until_ready(value_and_grad(r0))
-    t1 = time.perf_counter()
-    (l0, overflow), g = value_and_grad(r0)
-    jax.block_until_ready(g)
-    wall = time.perf_counter() - t1
-    _no_overflow(overflow, f"the {n}-step rollout")
-    g = np.asarray(g, np.float64)
+    l0, g, wall, compile_s = timed_gradient(loss, r0, f"the {n}-step rollout")
     fd_err = np.nan
     if exp.growth.fd_check:
         d = np.random.default_rng(exp.seed).normal(size=r0.shape)
@@ -288,7 +287,7 @@ def growth_one(exp: "S.Experiment", case: "S.Case", solver, state0, nbrs, n: int
         fd_err = abs(ad - fd) / max(abs(fd), 1e-300)
     row = {"case": case.name, "dtype": exp.growth.dtype, "n_steps": n, "t": n * solver.dt, "segments": segments,
            "loss": float(l0), "grad_norm": float(np.linalg.norm(g)), "grad_max": float(np.max(np.abs(g))),
-           "fd_dir_relerr": fd_err, "wall_s": wall, "compile_s": max(t1 - t0 - wall, 0.0),
+           "fd_dir_relerr": fd_err, "wall_s": wall, "compile_s": compile_s,
            "fingerprint": growth_fingerprint(exp, case, n)}
     print(f"{case.name} n = {n}: E_kin = {row['loss']:.4g}, |grad| = {row['grad_norm']:.4g}, "
           f"AD vs FD (direction) {fd_err:.2g}, {wall:.2f} s (+ {row['compile_s']:.1f} s compile)", flush=True)

@@ -47,25 +47,27 @@ COLUMNS = ["case", "kind", "method", "setup", "expected", "status", "passed", "a
 
 
 # -- criteria ---------------------------------------------------------------------------------------
+CRITERION_TEXTS = (
+    ("density_error_max", "max abs(rho/rho0-1) <= {v:g}"),
+    ("no_crossing", "no fluid particle beyond a wall face by > dx/2 or outside the box"),
+    ("energy_rise_max", "E = E_kin+E_pot never rises above its running minimum by > {v:g} E0"),
+    ("ekin_relerr_max", "abs(E_kin/E_exact-1) <= {v:g} while E_exact >= {window:g} E0"),
+    ("ekin_rise_max", "E_kin never rises above its running minimum by > {v:g} E0"),
+    ("thermal_drift_max", "abs(E_th/E_th0-1) <= {v:g}"),
+    ("overshoot_max", "T stays in its initial range within {v:g} of it"),
+    ("dt_limit", "the {v} dt limit binds"),
+)
+"""Each criterion of `S.Criteria` in words, {v} its value: the criterion column of the table."""
+
+
 def criterion_text(case: "S.Case") -> str:
+    """The case's criteria in words: those set (not None; `no_crossing` when true), in table order."""
     c = case.criteria
     parts = ["finite and |u| < c_ref to t_end"]
-    if c.density_error_max is not None:
-        parts.append(f"max abs(rho/rho0-1) <= {c.density_error_max:g}")
-    if c.no_crossing:
-        parts.append("no fluid particle beyond a wall face by > dx/2 or outside the box")
-    if c.energy_rise_max is not None:
-        parts.append(f"E = E_kin+E_pot never rises above its running minimum by > {c.energy_rise_max:g} E0")
-    if c.ekin_relerr_max is not None:
-        parts.append(f"abs(E_kin/E_exact-1) <= {c.ekin_relerr_max:g} while E_exact >= {C.EKIN_WINDOW:g} E0")
-    if c.ekin_rise_max is not None:
-        parts.append(f"E_kin never rises above its running minimum by > {c.ekin_rise_max:g} E0")
-    if c.thermal_drift_max is not None:
-        parts.append(f"abs(E_th/E_th0-1) <= {c.thermal_drift_max:g}")
-    if c.overshoot_max is not None:
-        parts.append(f"T stays in its initial range within {c.overshoot_max:g} of it")
-    if c.dt_limit is not None:
-        parts.append(f"the {c.dt_limit} dt limit binds")
+    for name, text in CRITERION_TEXTS:
+        v = getattr(c, name)
+        if v is not None and v is not False:
+            parts.append(text.format(v=v, window=C.EKIN_WINDOW))
     return "; ".join(parts)
 
 
