@@ -7,7 +7,6 @@ limits) with the last good frame kept, a fixed dt above its limits reported befo
 config errors printed as one line naming the file, the profile the key is written in and the key.
 All on smoke sizes (at most a few hundred particles, a few hundred steps).
 """
-import shutil
 import signal
 import subprocess
 import sys
@@ -34,6 +33,7 @@ from sph.lattice import cartesian
 from sph.scene import Scene
 from sph.checks import InsufficientMemory, UnstableTimeStep
 from sph.state import FLUID
+from sph_test_helpers import copied_experiment
 
 DX = 0.05
 ROOT = Path(__file__).resolve().parents[1]
@@ -387,14 +387,9 @@ def _study(tmp_path):
     particles, ~22000 steps, a frame every 220 steps (several seconds of compute even with the
     faster solver, so that a signal sent at 1/4 or 1/2 lands mid-run, not during the process's exit:
     at ~8800 steps a CI run once finished before its SIGINT took effect and exited 0)."""
-    study = tmp_path / "study"
-    shutil.copytree(ROOT / "experiments" / "tgv2d", study, ignore=shutil.ignore_patterns("__pycache__"))
-    cfg = yaml.safe_load((study / "config.yaml").read_text())
-    cfg["profiles"]["smoke"].update(dx=[0.1], t_end=50.0, frames=100, eval_times=[1.0],
-                                    methods=[{"name": "tvf", "effects": {"tvf": True}}],
-                                    relaxation={"steps": 20, "quench_every": 10})
-    (study / "config.yaml").write_text(yaml.safe_dump(cfg))
-    return study
+    return copied_experiment("tgv2d", tmp_path / "study", dx=[0.1], t_end=50.0, frames=100, eval_times=[1.0],
+                             methods=[{"name": "tvf", "effects": {"tvf": True}}],
+                             relaxation={"steps": 20, "quench_every": 10})
 
 
 def _checkpoint_step(path) -> int:

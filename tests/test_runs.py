@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 import sph
 from sph.harness import cli, io, keys, record, runs, stamp, tables
 from sph.cases import tgv
+from sph_test_helpers import copied_experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN_PY = ROOT / "experiments" / "ldc2d" / "run.py"
@@ -231,13 +231,9 @@ def test_stamp_changes_only_with_the_outputs(tmp_path):
 
 # -- a copied folder is an experiment of its own ------------------------------------------------------
 def test_copied_experiment_folder_runs_unchanged(tmp_path):
-    study = tmp_path / "my_study"
-    shutil.copytree(ROOT / "experiments" / "tgv2d", study, ignore=shutil.ignore_patterns("__pycache__"))
-    cfg = yaml.safe_load((study / "config.yaml").read_text())
-    cfg["profiles"]["smoke"].update(dx=[0.1], t_end=0.05, frames=5, eval_times=[0.05],
-                                    methods=[{"name": "tvf", "effects": {"tvf": True}}],
-                                    relaxation={"steps": 20, "quench_every": 10})
-    (study / "config.yaml").write_text(yaml.safe_dump(cfg))
+    study = copied_experiment("tgv2d", tmp_path / "my_study", dx=[0.1], t_end=0.05, frames=5, eval_times=[0.05],
+                              methods=[{"name": "tvf", "effects": {"tvf": True}}],
+                              relaxation={"steps": 20, "quench_every": 10})
     results = tmp_path / "results"
     env_cmd = [sys.executable, str(study / "run.py"), "--profile", "smoke", "--results", str(results), "--no-progress"]
     subprocess.run(env_cmd, check=True, cwd=tmp_path, capture_output=True, text=True)
