@@ -23,6 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from sph.harness.figures import save_figure  # noqa: E402
 from sph.state import FLUID  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -100,9 +101,7 @@ def plot_fig1(exp: "S.Experiment", results) -> Path:
     fig.suptitle(rf"Gradient check: $\partial E_{{kin}}(t_{{{exp.warmup_steps}+{exp.loss_steps}}})"
                  rf" / \partial \mathbf{{r}}(t_{{{exp.warmup_steps}}})$, AD vs central FD, "
                  rf"$\epsilon$ = {exp.eps:g}, $\Delta x$ = {exp.dx:g}", fontsize=10)
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"fig1.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "fig1")
     shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
     shutil.copyfile(S.sweep_path(results), out / "sweep.csv")
     print(f"fig1 -> {out / 'fig1.png'}, {out / 'metrics.csv'}")

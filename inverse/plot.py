@@ -19,6 +19,8 @@ import pandas as pd  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
+from sph.harness.figures import save_figure  # noqa: E402
+
 try:  # noqa: E402
     from . import scene as cube
     from . import settings as S
@@ -84,20 +86,14 @@ def plot(exp: "S.Experiment", results) -> Path:
                  label="iteration of the initial-state iterate")
     fig.suptitle(f"Inverse problem: recover the initial positions from the final ones "
                  f"(t = {exp.t_end:g}, {exp.n_fluid} particles)")
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"fig2.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "fig2")
     shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
     shutil.copyfile(S.out_dir(results) / "summary.csv", out / "summary.csv")
     print(f"fig2 -> {out / 'fig2.png'}, {out / 'metrics.csv'}")
     return out / "fig2.png"
 
 
-def main(args):
-    plot(S.load(args.profile), args.results)
-
-
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from sph.harness.cli import experiment_main
 
-    profile_main(main, __doc__)
+    experiment_main(plot, S.load, __doc__)

@@ -289,11 +289,7 @@ def summarize(exp: S.Experiment, table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def main(args):
-    run_all(S.load(args.profile), args.results)
-
-
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from sph.harness.cli import experiment_main
 
-    profile_main(main, __doc__)
+    experiment_main(run_all, S.load, __doc__)

@@ -28,6 +28,7 @@ import pandas as pd  # noqa: E402
 
 from sph.harness import stamp  # noqa: E402
 from sph.harness.deliver import note_input  # noqa: E402
+from sph.harness.figures import save_figure  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
@@ -176,9 +177,7 @@ def plot_accuracy(tables: dict, out: Path):
         ax.set(title=name, xlabel="wall time of the run [s]", ylabel=PROBLEMS[name][2])
         ax.grid(True, which="both", alpha=0.3)
         style_legend(ax, styles, extra=[front])
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"accuracy.{ext}", dpi=130)
-    plt.close(fig)
+    save_figure(fig, out, "accuracy", dpi=130)
 
 
 def plot_convergence(tables: dict, out: Path) -> dict:
@@ -278,11 +277,7 @@ def build(atlas: "S.Atlas", results) -> Path:
     return out
 
 
-def main(args):
-    build(S.load(args.profile), args.results)
-
-
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from sph.harness.cli import experiment_main
 
-    profile_main(main, __doc__)
+    experiment_main(build, S.load, __doc__)

@@ -236,11 +236,7 @@ def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
     return table
 
 
-def main(args):
-    evaluate_all(S.load(args.profile), args.results)
-
-
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from sph.harness.cli import experiment_main
 
-    profile_main(main, __doc__)
+    experiment_main(evaluate_all, S.load, __doc__)

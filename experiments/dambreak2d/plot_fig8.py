@@ -20,6 +20,7 @@ from matplotlib.patches import Rectangle  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from sph.harness.figures import save_figure  # noqa: E402
 import sph  # noqa: E402
 from sph.harness import animate, io  # noqa: E402
 try:  # noqa: E402
@@ -66,9 +67,7 @@ def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
     fig.colorbar(sc, ax=axes, shrink=0.8, label=r"$p/(\rho g H)$")
     fig.suptitle(f"Dam break, Riemann SPH, dx = {exp.dx:g} H, {column.width:g} x {column.height:g} column, "
                  f"{exp.effects.walls} walls")
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"fig8.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "fig8")
     return out / "fig8.png"
 
 
@@ -118,9 +117,7 @@ def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
     ax_h.legend(fontsize=8)
     for ax in (ax_p, ax_f, ax_h):
         ax.grid(True, alpha=0.3)
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"validation.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "validation")
     return out / "validation.png"
 
 

@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from sph.harness.figures import figure_dir, save_figure  # noqa: E402
 from sph.harness import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -31,8 +32,7 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
     traj = io.read_trajectory(fig4_traj(exp, results))
     if "velocity" not in traj:
         raise SystemExit("fig4 needs the velocity field: add 'velocity' to `keep` in config.yaml")
-    out = Path(out) if out is not None else Path(results) / "fig4"
-    out.mkdir(parents=True, exist_ok=True)
+    out = figure_dir(results, "fig4", out)
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.0), constrained_layout=True)
     # marker area in points^2: a square of about one spacing on the ~3.2 in wide unit-square axes
     size = (1.15 * 3.2 * 72 * dx) ** 2
@@ -46,9 +46,7 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
         fig.colorbar(sc, ax=ax, label="|u|", shrink=0.9)
     fig.suptitle(f"2D Taylor-Green vortex, Re = {exp.re:g}, {exp.fig4_method.upper()}, dx = {dx:g} "
                  f"({traj['particle_type'].shape[0]} particles)")
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"fig4.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "fig4")
     print(f"fig4 -> {out / 'fig4.png'}")
     return out / "fig4.png"
 

@@ -37,11 +37,7 @@ def write_metrics(exp: "S.Experiment", results) -> pd.DataFrame:
     return tgv2d_runs.write_metrics(S.STUDY, exp, results)
 
 
-def options(ap):
-    ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
-    ap.add_argument("--dx", nargs="*", type=float, default=None,
-                    help="run only these of the profile's spacings (default: all)")
-    ap.add_argument("--no-progress", action="store_true")
+options = cli.run_options("--dx", float, "spacings")
 
 
 def main(args):

@@ -89,11 +89,7 @@ def run_all(exp: "S.Experiment", results, methods=None, ns=None, progress: bool 
                  lambda m, n: run_one(exp, m, n, results, progress), only=methods)
 
 
-def options(ap):
-    ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
-    ap.add_argument("--n", nargs="*", type=int, default=None,
-                    help="run only these of the profile's resolutions, particles per side (default: all)")
-    ap.add_argument("--no-progress", action="store_true")
+options = cli.run_options("--n", int, "resolutions, particles per side")
 
 
 def main(args):

@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from sph.harness.figures import save_figure  # noqa: E402
 from sph.state import FLUID  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -71,9 +72,7 @@ def plot(exp: "S.Experiment", results) -> Path:
     fig.suptitle(f"Hot channel (JAX-SPH Fig. 10): standard SPH + heat, dx = {c.dx:g}, {int(fluid.sum())} fluid "
                  f"particles\nwalls dotted; heated bottom segment |x - {box[0] / 2:g}| < {c.hot_half_width:g} "
                  f"at T_hot = {c.T_hot:g}, other walls at T_ref = {c.T_ref:g}", fontsize=9)
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"fig10.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "fig10")
 
     t = series["time"]
     fig, ax = plt.subplots(1, 3, figsize=(12.0, 3.4), constrained_layout=True)
@@ -100,11 +99,7 @@ def plot(exp: "S.Experiment", results) -> Path:
     return out / "fig10.png"
 
 
-def main(args):
-    plot(S.load(args.profile), args.results)
-
-
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from sph.harness.cli import experiment_main
 
-    profile_main(main, __doc__)
+    experiment_main(plot, S.load, __doc__)

@@ -19,6 +19,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from sph.harness.figures import save_figure  # noqa: E402
+
 try:  # noqa: E402
     from . import settings as S
 except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
@@ -62,9 +64,7 @@ def plot(exp: "S.Experiment", results) -> dict:
     for ax in (ax_a, ax_e):
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle("Heat operator (Cleary 1998) vs. analytical decay of a sine, periodic box at rest")
-    for ext in ("png", "pdf"):
-        fig.savefig(out / f"heat_validation.{ext}", dpi=150)
-    plt.close(fig)
+    save_figure(fig, out, "heat_validation")
     row = table[np.isclose(table["dx"], d.report_dx)].iloc[0].to_dict()
     print(f"heat validation -> {out / 'heat_validation.png'}, {out / 'metrics.csv'}")
     print(f"dx = {d.report_dx:g}: decay-rate error {100 * row['decay_rate_relerr']:+.3f} %, amplitude error at "

@@ -7,6 +7,7 @@
   tables.py        metrics tables (csv), rewritten from the current config's runs
   io.py, xdmf.py   trajectory files (LagrangeBench layout, resumable) and their ParaView sidecars
   animate.py       a short GIF of a trajectory
+  figures.py       what the plot scripts share: method colours and dashes, figure files, table copies
   cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
   stamp.py         make stamps: a run step's manifest of exactly the current runs (note_current)
   deliver.py       deliverables verified on every make: re-made when their inputs or files differ

@@ -8,6 +8,10 @@
     if __name__ == "__main__":
         profile_main(main, __doc__, options=lambda ap: ap.add_argument("--only", nargs="*"))
 
+A script whose whole work is one function of the profile's settings and the results folder ends in
+`experiment_main(work, S.load, __doc__)` instead, a plot script with an `--out` folder in
+`figure_main(plot, S.load, __doc__, "fig5")`.
+
 `profile_main(main, doc, options)` parses `--profile` (default paper), `--results` (default
 results/<profile>) and the script's own options (`options(parser)` adds them), then calls
 `main(args)` through `main_guard`. `main_guard(fn, *args)` sets XLA's CPU defaults
@@ -30,7 +34,8 @@ on stderr, without a traceback (set SPH_TRACEBACK=1 to see it). Everything else 
 command line (an unknown option, an option such as `--only` given without a value) is one line too,
 "error (usage): ...", exit 2.
 `format_error(e)` is the line it prints. `select(option, given, allowed)` checks a command-line
-subset (`--only`, `--dx`) against the profile's own values.
+subset (`--only`, `--dx`) against the profile's own values; `run_options(grid, kind, values)` are
+the options of a study's run.py that choose such subsets.
 """
 import argparse
 import os
@@ -139,6 +144,35 @@ def profile_args(doc: Optional[str], argv=None, options: Optional[Callable] = No
 def profile_main(main: Callable, doc: Optional[str], options: Optional[Callable] = None, argv=None):
     """A script's command-line tail: `main(profile_args(doc, argv, options))` through `main_guard`."""
     return main_guard(lambda: main(profile_args(doc, argv, options)))
+
+
+def experiment_main(work: Callable, load: Callable, doc: Optional[str], argv=None):
+    """The command-line tail of a script whose whole work is `work(load(profile), results)` (e.g.
+    `experiment_main(plot, settings.load, __doc__)`), through `profile_main`."""
+    return profile_main(lambda args: work(load(args.profile), args.results), doc, argv=argv)
+
+
+def run_options(grid: str, kind: type, values: str) -> Callable:
+    """options(parser) of a study's run.py: `--only` (method names), `grid` (e.g. `--dx`, of type
+    `kind`: a subset of the profile's `values`) and `--no-progress`; check the subsets with `select`."""
+
+    def options(ap):
+        ap.add_argument("--only", nargs="*", default=None, help="method names to run (default: all)")
+        ap.add_argument(grid, nargs="*", type=kind, default=None,
+                        help=f"run only these of the profile's {values} (default: all)")
+        ap.add_argument("--no-progress", action="store_true")
+
+    return options
+
+
+def figure_main(plot: Callable, load: Callable, doc: Optional[str], name: str, argv=None):
+    """The command-line tail of a plot script: `plot(load(profile), results, out)`, `--out` the figure
+    folder (default <results>/<name>), through `profile_main`."""
+
+    def options(ap):
+        ap.add_argument("--out", default=None, help=f"figure folder (default <results>/{name})")
+
+    return profile_main(lambda args: plot(load(args.profile), args.results, args.out), doc, options, argv)
 
 
 def select(option: str, given: Optional[list], allowed: list) -> Optional[list]:
