@@ -33,15 +33,20 @@ DOMAINS = {
 }
 
 
+def _random_list(name, backend, seed, lo=0.0, hi=1.0, n=300):
+    """(domain, rng, positions, search, list): n particles uniform in [lo, hi] times the box of
+    DOMAINS[name], and their list from `backend`."""
+    domain = DOMAINS[name]
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(lo, hi, size=(n, 2)) * np.asarray(domain.box)
+    search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
+    return domain, rng, r, search, search.allocate(jnp.asarray(r))
+
+
 @pytest.mark.parametrize("backend", ["cell_sort", "jax_md"])
 @pytest.mark.parametrize("name", list(DOMAINS))
 def test_list_equals_brute_force_pairs(name, backend):
-    domain = DOMAINS[name]
-    rng = np.random.default_rng(51)
-    n = 300
-    r = rng.uniform(0.0, 1.0, size=(n, 2)) * np.asarray(domain.box)
-    search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
-    nbrs = search.allocate(jnp.asarray(r))
+    domain, _, r, search, nbrs = _random_list(name, backend, 51)
     assert not bool(nbrs.did_buffer_overflow)
     listed = listed_pairs(nbrs.idx)  # no duplicate, no self pair
     expected = _brute_force_pairs(r, CUTOFF + SKIN, domain)
@@ -65,13 +70,8 @@ def test_list_equals_brute_force_pairs(name, backend):
 @pytest.mark.parametrize("backend", ["cell_sort", "jax_md"])
 @pytest.mark.parametrize("name", list(DOMAINS))
 def test_verlet_skin_keeps_all_pairs_within_cutoff(name, backend):
-    domain = DOMAINS[name]
-    rng = np.random.default_rng(52)
-    n = 300
+    domain, rng, r, search, nbrs = _random_list(name, backend, 52, 0.1, 0.9)  # non-periodic moves stay inside
     box = np.asarray(domain.box)
-    r = rng.uniform(0.1, 0.9, size=(n, 2)) * box  # keep non-periodic moves inside the box
-    search = make_neighbor_search(domain, CUTOFF, SKIN, backend=backend)
-    nbrs = search.allocate(jnp.asarray(r))
 
     # small moves (< skin / 2): no rebuild, but every pair within the cutoff is still listed
     step = rng.normal(size=r.shape)
