@@ -22,6 +22,7 @@ from sitl import common as C  # first: it sets up LagrangeBench
 import haiku as hk
 import jax
 import jax.numpy as jnp
+import numpy as np
 from lagrangebench import infer
 from lagrangebench.evaluate import averaged_metrics
 
@@ -29,7 +30,7 @@ import sph
 from sitl import generate
 from sitl import model as M
 from sitl import settings as S
-from sitl.evaluate import KEYS
+from sitl.evaluate import KEYS, per_window, summary
 from sph.forces import ConstantForce
 from sph.harness.cli import profile_main
 
@@ -51,20 +52,23 @@ def uniform_force_model(exp: S.Experiment, data_train, case_fns):
 def evaluate(exp: S.Experiment, results, kind: str) -> dict:
     path = generate.ready(exp, results)
     data_train, _, data_test = C.datasets(exp, path)
-    case = C.case(exp, data_train)
+    case = C.case(exp, data_train, "solver")
     model = uniform_force_model(exp, data_train, case) if kind == "uniform" else C.model(exp, "solver", data_train, case)
     pos, ptype = data_test[0]
     sample = (jnp.asarray(pos[:, :exp.model.input_seq_length]), jnp.asarray(ptype))
     features, _ = case.allocate_eval(sample)
     params, state = model.init(jax.random.PRNGKey(0), (features, sample[1]))
     ev = exp.eval
-    n_trajs = data_test.num_samples if ev.n_trajs == -1 else min(ev.n_trajs, data_test.num_samples)
+    n_trajs = C.n_windows(exp, data_test)
     metrics = infer(model, case, data_test, params=params, state=state,
                     cfg_eval_infer={"n_trajs": n_trajs, "metrics_stride": ev.metrics_stride, "batch_size": ev.batch_size,
                                     "metrics": ["mse", "e_kin", "sinkhorn"], "out_type": "none", "n_extrap_steps": 0},
                     n_rollout_steps=ev.n_rollout_steps, seed=exp.train.seed)
     avg = averaged_metrics(metrics)
-    return {"n_rollouts": len(metrics), **{k: float(avg[v]) for k, v in KEYS.items()}}
+    out = summary(per_window(metrics), ev.bootstrap, [data_test.seed_of(i) for i in range(n_trajs)])
+    for k, v in KEYS.items():  # the per-window values average to LagrangeBench's own numbers
+        assert not np.isfinite(avg[v]) or np.isclose(out[k], avg[v], rtol=1e-5), (k, out[k], avg[v])
+    return out
 
 
 def main(args):

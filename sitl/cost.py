@@ -57,6 +57,7 @@ import csv
 import dataclasses
 import json
 import math
+import os
 import shutil
 import time
 from pathlib import Path
@@ -79,7 +80,7 @@ from sph.harness.keys import digest
 from sph.harness.record import RECORD_COLUMNS, save_record
 
 HERE = Path(__file__).resolve().parent
-CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py")]
+CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py", "study.py")]
 TRAINED = ("gns", "sitl")
 KEYS = {"mse5": "val/mse5", "mse20": "val/loss", "e_kin": "val/e_kin"}
 STYLE = {"fine": ("*", "C3"), "solver": ("o", "C0"), "gns": ("^", "C2"), "sitl": ("D", "C1")}
@@ -97,6 +98,7 @@ class Point:
     method: str
     M: float
     substeps: Optional[int]
+    study_run: Optional[str] = None   # a trained model of `make sitl-study` (sitl/study.py's run name)
 
 
 def _m(x: float) -> str:
@@ -104,7 +106,8 @@ def _m(x: float) -> str:
 
 
 def points(exp: S.Experiment) -> list:
-    """The fine solver, the solver alone at each configured M (and at SitL's substep), GNS, SitL."""
+    """The fine solver, the solver alone at each configured M (and at SitL's substep), GNS, SitL, and
+    the study's coarse SitL (study.substeps: L substeps per frame, M = W / L)."""
     w, lsitl = exp.data.write_every, exp.model.substeps
     out = [Point("fine", "fine", "fine solver", 1.0, w)]
     for m in sorted(exp.cost.coarsening):
@@ -114,7 +117,21 @@ def points(exp: S.Experiment) -> list:
                          w / lsitl, lsitl))
     out.append(Point("gns", "gns", "GNS", float(w), None))
     out.append(Point("sitl", "sitl", f"SitL (L={lsitl})", w / lsitl, lsitl))
+    for n in exp.study.substeps:
+        if n != lsitl:
+            out.append(Point(f"sitl_L{n}", "sitl", f"SitL (L={n}, study)", w / n, n, study_run=f"sitl_L{n}"))
     return out
+
+
+def trained_run(exp: S.Experiment, profile: str, results, p: Point):
+    """(experiment, results folder) of a trained point: Table 1's, or the study's run `p.study_run`."""
+    if p.study_run is None:
+        return exp, Path(results)
+    from sitl import study
+
+    run = {r.name: r for r in study.runs(exp)}[p.study_run]
+    rexp = study.run_experiment(profile, exp, run)
+    return rexp, study.study_dir(results) / "runs" / run.name
 
 
 def trained_status(exp: S.Experiment, results, kind: str, metadata_text: str):
@@ -123,7 +140,7 @@ def trained_status(exp: S.Experiment, results, kind: str, metadata_text: str):
     mpath, ckp = S.metrics_path(results, kind), S.ckpt_dir(results, kind)
     side = ckp / "train.json"
     if not mpath.exists():
-        return None, f"no {mpath} (make table1 trains and evaluates it)"
+        return None, f"no {mpath} (make table1 / make sitl-study trains and evaluates it)"
     if not side.exists() or not (ckp / "best" / "params_tree.pkl").exists():
         return None, f"no trained checkpoint in {ckp}"
     rec = json.loads(side.read_text())
@@ -151,9 +168,10 @@ def inputs_key(exp: S.Experiment, results, path: Path, trained: dict) -> str:
     return digest({"data": [gen.get("fingerprint"), gen.get("config"), (path / "metadata.json").read_text()],
                    "cost": to_mapping(exp.cost), "eval": to_mapping(exp.eval), "model": to_mapping(exp.model),
                    "dtype": exp.train.dtype, "seed": exp.train.seed, "code": keys.code_fingerprint(CODE),
-                   "trained": {k: [S.metrics_path(results, k).read_text(),
-                                   (S.ckpt_dir(results, k) / "train.json").read_text()]
-                               for k, (met, _) in trained.items() if met is not None}})
+                   "study": to_mapping(exp.study),
+                   "trained": {name: [S.metrics_path(folder, name.split("_")[0]).read_text(),
+                                      (S.ckpt_dir(folder, name.split("_")[0]) / "train.json").read_text()]
+                               for name, (met, _, folder) in trained.items() if met is not None}})
 
 
 def solver_model(exp: S.Experiment, data_train, case, substeps: int):
@@ -337,7 +355,9 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     path = generate.ready(exp, results)
     meta_text = (path / "metadata.json").read_text()
     plan = points(exp)
-    trained = {k: trained_status(exp, results, k, meta_text) for k in TRAINED}
+    where = {p.name: trained_run(exp, profile, results, p) for p in plan if p.kind in TRAINED}
+    trained = {name: (*trained_status(rexp, folder, next(q.kind for q in plan if q.name == name), meta_text),
+                      folder) for name, (rexp, folder) in where.items()}
     key = inputs_key(exp, results, path, trained)
     out = S.out_dir(results)
     side = out / "cost.json"
@@ -346,7 +366,7 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
             stored = json.loads(side.read_text())
         except ValueError:  # damaged: measured again
             stored = {}
-        names = [p.name for p in plan if p.kind not in TRAINED or trained[p.kind][0] is not None]
+        names = [p.name for p in plan if p.kind not in TRAINED or trained[p.name][0] is not None]
         if stored.get("key") == key and all((S.cost_dir(results) / n / "record.json").exists() for n in names):
             print(f"cost: up to date ({out / 'cost.csv'})", flush=True)
             return stored["rows"]
@@ -356,7 +376,7 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     from lagrangebench.utils import load_haiku
 
     data_train, _, data_test = C.datasets(exp, path)
-    case = C.case(exp, data_train)
+    case = C.case(exp, data_train, "solver")
     computer = MetricsComputer(["mse", "e_kin"], dist_fn=case.displacement, metadata=data_test.metadata,
                                input_seq_length=data_test.input_seq_length, stride=exp.eval.metrics_stride)
     pos, ptype = data_test[0]
@@ -368,15 +388,17 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     rows, steppers = [], {}
     for p in plan:
         if p.kind in TRAINED:
-            met, why = trained[p.kind]
+            met, why, folder = trained[p.name]
             if met is None:
                 print(f"cost: {p.method} left out: {why}", flush=True)
                 continue
-            model = C.model(exp, p.kind, data_train, case)
-            params, state, _, _ = load_haiku(str(S.ckpt_dir(results, p.kind) / "best"))
-            steppers[p.name] = Stepper(model, params, state, case, sample)
+            rexp = where[p.name][0]
+            kcase = C.case(rexp, data_train, p.kind)  # its training noise is in its normalisation
+            model = C.model(rexp, p.kind, data_train, kcase)
+            params, state, _, _ = load_haiku(str(S.ckpt_dir(folder, p.kind) / "best"))
+            steppers[p.name] = Stepper(model, params, state, kcase, sample)
             acc = {"n_rollouts": met["n_rollouts"], **{k: met[k] for k in KEYS}, "std_mse20": met["std_mse20"]}
-            source = f"metrics/{p.kind}.json"
+            source = str(Path(os.path.relpath(S.metrics_path(folder, p.kind), results)))
         else:
             model = fine_model(exp, data_train, case) if p.kind == "fine" else \
                 solver_model(exp, data_train, case, p.substeps)

@@ -362,10 +362,14 @@ def ready(exp: S.Experiment, results) -> Path:
 
 def options(ap):
     ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--authors-force", action="store_true",
+                    help="the dataset of the study's authors'-force run (study.authors_force_data over data)")
 
 
 def main(args):
-    dataset(S.load(args.profile), args.results, progress=not args.no_progress)
+    exp = S.load(args.profile)
+    dataset(S.authors_force_experiment(exp) if args.authors_force else exp, args.results,
+            progress=not args.no_progress)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,10 @@ from sph.cases import rpf
 from sph.lattice import cartesian
 from sph.neighbors import make_neighbor_search
 
+GRAPH_SKIN = 0.25
+"""Skin of the corrector's Verlet list, relative to the connectivity radius (rebuilt when a particle
+moved by half of it; the edges are masked to the radius in `graph_features`)."""
+
 
 @dataclass(frozen=True, eq=False, repr=False)
 class Setup:
@@ -80,7 +84,9 @@ def make_setup(metadata: dict, normalization_stats: dict, r_sample, substeps: in
     solver = coarse_solver(metadata, substeps, dtype, capacity_multiplier)
     jdt = solver.dtype
     radius = float(metadata["default_connectivity_radius"])
-    graph = make_neighbor_search(solver.scene.domain, cutoff=radius, skin=0.5 * radius,
+    # a Verlet list (skin GRAPH_SKIN radius) from which `graph_features` keeps exactly the pairs closer
+    # than the radius at the corrector's input positions: LagrangeBench's graph, no skin edges
+    graph = make_neighbor_search(solver.scene.domain, cutoff=radius, skin=GRAPH_SKIN * radius,
                                  capacity_multiplier=capacity_multiplier)
     r = jnp.asarray(r_sample, jdt)
     acc, vel = normalization_stats["acceleration"], normalization_stats["velocity"]
@@ -98,19 +104,32 @@ def _safe_norm(x):
 
 def graph_features(setup: Setup, r, u, nbrs) -> dict:
     """LagrangeBench's GNS features at positions r, velocity u (physical): normalised velocity in
-    per-frame units, the body force, and edges (receiver i <- sender j, self edges included as in
-    LagrangeBench's mask_self=False) with displacement / radius and its length. Padded slots point
-    both ends at N so that jraph's aggregation drops them."""
+    per-frame units, the body force, and edges (receiver i <- sender j) with displacement / radius
+    and its length. The edges are exactly LagrangeBench's graph at r: every pair closer than the
+    connectivity radius at r, self edges included (its mask_self=False), nothing of the Verlet
+    list's skin (`nbrs`, valid at r, holds a superset; the rest is masked out). Padded and masked
+    slots point both ends at N so that jraph's aggregation drops them."""
     n = r.shape[0]
     disp = setup.solver.scene.domain.make_displacement(setup.solver.neighbors.cutoff + setup.solver.neighbors.skin)
     idx = nbrs.idx                                                         # (N, K), padded with N
     senders = jnp.concatenate([idx.reshape(-1), jnp.arange(n)])
     rows = jnp.concatenate([jnp.repeat(jnp.arange(n), idx.shape[1]), jnp.arange(n)])
-    receivers = jnp.where(senders < n, rows, n)
-    rel = disp(r[receivers], r[jnp.minimum(senders, n - 1)]) / setup.radius
+    rel = disp(r[jnp.minimum(rows, n - 1)], r[jnp.minimum(senders, n - 1)]) / setup.radius
+    dist = _safe_norm(rel)
+    inside = (senders < n) & (dist[:, 0] < 1.0)
+    senders = jnp.where(inside, senders, n)
+    receivers = jnp.where(inside, rows, n)
     vel = (u * setup.frame_dt - setup.vel_mean) / setup.vel_std
     return {"vel_hist": vel, "force": setup.solver.scene.body_force(r), "senders": senders, "receivers": receivers,
-            "rel_disp": rel, "rel_dist": _safe_norm(rel)}
+            "rel_disp": rel, "rel_dist": dist}
+
+
+def edge_set(features: dict, n: int) -> set:
+    """{(receiver, sender)} of the real (not padded or masked) edges of a feature dict, ours or
+    LagrangeBench's."""
+    rec, snd = np.asarray(features["receivers"]), np.asarray(features["senders"])
+    keep = (rec < n) & (snd < n)
+    return set(zip(rec[keep].tolist(), snd[keep].tolist()))
 
 
 class SolverInTheLoop(hk.Module):
@@ -172,7 +191,32 @@ def build(kind: str, metadata: dict, normalization_stats: dict, r_sample, model_
                                    blocks_per_step=model_cfg.num_mlp_layers, num_mp_steps=model_cfg.num_mp_steps)(x)
     else:
         raise ValueError(f"model: {kind!r} is not one of solver, gns, sitl")
-    return hk.without_apply_rng(hk.transform_with_state(fn))
+    model = hk.without_apply_rng(hk.transform_with_state(fn))
+    if kind != "sitl":
+        return model
+
+    def init(rng, sample):
+        params, state = model.init(rng, sample)
+        return zero_last_layer(params), state
+
+    return hk.TransformedWithState(init, model.apply)
+
+
+def last_layer(params) -> str:
+    """The haiku module of the corrector's output layer: the last Linear of the GNS decoder."""
+    names = sorted((k for k in params if "_decoder" in k and k.rsplit("/", 1)[-1].startswith("linear")),
+                   key=lambda k: int(k.rsplit("_", 1)[-1]) if k.rsplit("_", 1)[-1].isdigit() else 0)
+    if not names:
+        raise KeyError(f"no decoder Linear among the corrector's parameters {sorted(params)}")
+    return names[-1]
+
+
+def zero_last_layer(params):
+    """The corrector's output layer (weights and bias) set to zero, so that the untrained SitL model is
+    exactly the solver alone ("no correction" is where training starts; the other layers keep their
+    random init, and the gradient reaches them once the last layer is non-zero)."""
+    name = last_layer(params)
+    return {**params, name: jax.tree_util.tree_map(jnp.zeros_like, params[name])}
 
 
 def overflowed(state) -> int:

@@ -17,18 +17,18 @@ SITL_METRICS := $(foreach m,$(SITL_MODELS),$(SITL_OUT)/metrics/$(m).json)
 SITL_ENV    := WANDB_MODE=disabled
 SITL_CODE   := $(shell python3 -P sph/harness/keys.py $(SITL)/generate.py $(SITL)/settings.py 2>/dev/null)
 
-.PHONY: fig3 table1 sitl-data sitl-cost
+.PHONY: fig3 table1 sitl-data sitl-cost sitl-study
 
 sitl-data: $(SITL_DATA)
 $(SITL_DATA): $(SITL)/config.yaml $(SITL)/settings.py $(SITL)/generate.py $(SITL_CODE) | $(SITL_VENV)
 	$(SITL_PY) $(SITL)/generate.py --profile $(PROFILE) --results $(RESULTS) --no-progress
 
-$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py | $(SITL_VENV)
+$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py $(SITL)/stats.py | $(SITL_VENV)
 	$(SITL_ENV) $(SITL_PY) $(SITL)/train.py --profile $(PROFILE) --results $(RESULTS) --model $*
 	$(SITL_ENV) $(SITL_PY) $(SITL)/evaluate.py --profile $(PROFILE) --results $(RESULTS) --model $*
 
 table1: $(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md
-$(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md &: $(SITL_METRICS) $(SITL)/table1.py | $(SITL_VENV)
+$(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md &: $(SITL_METRICS) $(SITL)/table1.py $(SITL)/stats.py | $(SITL_VENV)
 	$(SITL_PY) $(SITL)/table1.py --profile $(PROFILE) --results $(RESULTS)
 
 fig3: $(RESULTS)/fig3/fig3.png $(RESULTS)/fig3/fig3.pdf
@@ -45,3 +45,11 @@ $(RESULTS)/fig3/fig3.png $(RESULTS)/fig3/fig3.pdf &: $(SITL_METRICS) $(SITL)/plo
 sitl-cost: $(SITL_OUT)/cost.csv
 $(SITL_OUT)/cost.csv: $(SITL_DATA) FORCE | $(SITL_VENV)
 	$(SITL_ENV) $(SITL_PY) $(SITL)/cost.py --profile $(PROFILE) --results $(RESULTS)
+
+# When does SitL beat the solver alone? (sitl/study.py, issue 21): SitL's noise sweep, coarse SitL
+# where the solver alone fails, a second training seed, GNS at SitL's training wall time, the authors'
+# force at the paper's resolution. Each run trains / evaluates once and resumes from its checkpoint;
+# Table 1's own runs are shared (same folder). Always called (FORCE): study.py skips what is current.
+# ONLY="sitl_L2 solver_L2" runs a subset. -> $(RESULTS)/sitl_study/study.{csv,md,png,json}
+sitl-study: $(SITL_DATA) FORCE | $(SITL_VENV)
+	$(SITL_ENV) $(SITL_PY) $(SITL)/study.py --profile $(PROFILE) --results $(RESULTS) $(if $(ONLY),--only $(ONLY))

@@ -8,10 +8,10 @@ An unknown or mistyped key fails with a message naming it (e.g. ``profiles.smoke
 """
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import sph
-from sph.harness.configtools import load_profile, require, to_mapping
+from sph.harness.configtools import from_mapping, load_profile, merge, require, to_mapping
 from sph.harness.keys import code_fingerprint, digest, files_digest
 from sph.relax import Relaxation
 
@@ -131,23 +131,28 @@ class Train:
     """LagrangeBench Trainer settings (no pushforward, as in the paper).
 
     step_max           training steps per model
-    lr_start, lr_final, lr_decay_steps, lr_decay_rate   exponential decay (LagrangeBench's optax)
-    noise_std          GNS random-walk input noise
+    lr_start, lr_final, lr_decay_steps, lr_decay_rate   exponential decay (LagrangeBench's optax);
+                       paper App. B.2 and the authors' last yaml: lr_start 1e-3
+    noise_std          GNS's random-walk input noise (paper App. B.2: 1e-3)
+    sitl_noise_std     SitL's (paper App. B.2 and the authors' final SitL script: 1e-5); "solver" is
+                       evaluated with SitL's case (its normalisation cancels in its output)
     eval_steps         validate (20-step MSE on `eval_n_trajs` valid rollouts) and checkpoint
+    eval_n_trajs       validation windows, taken round-robin over the seeds (sitl/common.py)
     log_steps          print the training loss
     seed               model init, noise and data-loader seed
     dtype              precision of the networks and the in-model solver
     """
 
     step_max: int = 1000
-    lr_start: float = 5e-4
+    lr_start: float = 1e-3
     lr_final: float = 1e-6
     lr_decay_steps: float = 1e5
     lr_decay_rate: float = 0.1
-    noise_std: float = 3e-4
+    noise_std: float = 1e-3
+    sitl_noise_std: float = 1e-5
     eval_steps: int = 500
     log_steps: int = 100
-    eval_n_trajs: int = 5
+    eval_n_trajs: int = 25
     seed: int = 0
     dtype: str = "float32"
     num_workers: int = 0
@@ -156,31 +161,40 @@ class Train:
         require(self.step_max >= 1, "train.step_max", "must be >= 1")
         require(0 < self.lr_final <= self.lr_start, "train.lr_final", "must be in (0, lr_start]")
         require(self.noise_std >= 0, "train.noise_std", "must be >= 0")
+        require(self.sitl_noise_std >= 0, "train.sitl_noise_std", "must be >= 0")
         require(1 <= self.eval_steps <= self.step_max, "train.eval_steps", "must be in [1, step_max]")
         require(self.log_steps >= 1, "train.log_steps", "must be >= 1")
         require(self.eval_n_trajs >= 1, "train.eval_n_trajs", "must be >= 1")
         require(self.dtype in ("float32", "float64"), "train.dtype", f"{self.dtype!r} is not float32 or float64")
+
+    def noise(self, kind: str) -> float:
+        """The training noise of model `kind` (GNS: noise_std; SitL and the solver: sitl_noise_std)."""
+        return self.noise_std if kind == "gns" else self.sitl_noise_std
 
 
 @dataclass(frozen=True)
 class Eval:
     """Test-set inference (LagrangeBench `infer`): `n_rollout_steps` = 20 gives MSE_20.
 
-    n_trajs            test rollouts (-1: all 20-step windows of the test split)
+    n_trajs            test rollouts (-1: all 20-step windows of the test split, of every seed;
+                       otherwise the first n_trajs taken round-robin over the seeds)
     metrics_stride     stride of e_kin and sinkhorn along the rollout
     batch_size         rollouts evaluated together
+    bootstrap          resamples (over test windows) of the 95 % interval of each mean (sitl/stats.py)
     """
 
     n_rollout_steps: int = 20
     n_trajs: int = -1
     metrics_stride: int = 1
     batch_size: int = 1
+    bootstrap: int = 2000
 
     def __post_init__(self):
         require(self.n_rollout_steps >= 5, "eval.n_rollout_steps", "must be >= 5 (MSE_5 is reported)")
         require(self.n_trajs == -1 or self.n_trajs >= 1, "eval.n_trajs", "must be -1 or >= 1")
         require(self.metrics_stride >= 1, "eval.metrics_stride", "must be >= 1")
         require(self.batch_size >= 1, "eval.batch_size", "must be >= 1")
+        require(self.bootstrap >= 100, "eval.bootstrap", f"must be >= 100, got {self.bootstrap}")
 
 
 @dataclass(frozen=True)
@@ -222,6 +236,41 @@ class Cost:
 
 
 @dataclass(frozen=True)
+class Study:
+    """`make sitl-study` (sitl/study.py): when does SitL beat the solver alone? Every run is a
+    training (or an evaluation) of its own, cached and resumable like Table 1's.
+
+    noise            SitL's training noise sweep (paper: 1e-5); test MSE_20 against solver only's
+    substeps         coarse SitL (and the solver alone) at L substeps per frame, M = write_every / L,
+                     where the solver alone fails; trained at the paper's noise
+    train_seeds      further training seeds of SitL (paper settings): the spread between trainings
+    gns_equal_cost   GNS trained for as many steps as fit in SitL's training wall time (its own
+                     measured s / step), the comparison at equal training cost
+    authors_force_data  keys over `data` for the dataset of the authors' force bug (their uniform
+                     force against the per-particle one, solver only, no training): the paper's
+                     resolution and frame interval on cpu / paper; {} = the profile's own dataset
+    overrides        keys over the whole profile for every study run (smoke: tiny sizes); a run whose
+                     settings equal the profile's (e.g. SitL at the paper's noise) is Table 1's own
+    """
+
+    noise: tuple[float, ...] = (0.0, 1e-5, 3e-5, 3e-4)
+    substeps: tuple[int, ...] = (2, 1)
+    train_seeds: tuple[int, ...] = (1,)
+    gns_equal_cost: bool = True
+    authors_force_data: Any = None
+    overrides: Any = None
+
+    def __post_init__(self):
+        for i, n in enumerate(self.noise):
+            require(n >= 0, f"study.noise[{i}]", f"must be >= 0, got {n}")
+        for i, n in enumerate(self.substeps):
+            require(n >= 1, f"study.substeps[{i}]", f"must be >= 1, got {n}")
+        for key in ("authors_force_data", "overrides"):
+            v = getattr(self, key)
+            require(v is None or isinstance(v, dict), f"study.{key}", f"must be a mapping, got {v!r}")
+
+
+@dataclass(frozen=True)
 class Experiment:
     data: Data
     model: Model = field(default_factory=Model)
@@ -229,6 +278,7 @@ class Experiment:
     eval: Eval = field(default_factory=Eval)
     fig3: Fig3 = field(default_factory=Fig3)
     cost: Cost = field(default_factory=Cost)
+    study: Study = field(default_factory=Study)
     models: tuple[str, ...] = MODELS
 
     def __post_init__(self):
@@ -237,9 +287,9 @@ class Experiment:
         windows = self.data.frames[2] // (self.model.input_seq_length + self.eval.n_rollout_steps)
         require(windows >= 1, "data.frames[2]", f"the test split needs at least input_seq_length + "
                 f"eval.n_rollout_steps = {self.model.input_seq_length + self.eval.n_rollout_steps} frames")
-        require(self.data.frames[1] // (self.model.input_seq_length + self.eval.n_rollout_steps)
-                >= self.train.eval_n_trajs, "train.eval_n_trajs",
-                "exceeds the 22-frame windows of the valid split (raise data.frames[1])")
+        valid = self.data.frames[1] // (self.model.input_seq_length + self.eval.n_rollout_steps) * self.data.seeds
+        require(valid >= self.train.eval_n_trajs, "train.eval_n_trajs",
+                f"{self.train.eval_n_trajs} exceeds the {valid} windows of the valid split (raise data.frames[1])")
         require(max(self.fig3.stamps) <= self.eval.n_rollout_steps, "fig3.stamps",
                 f"must be <= eval.n_rollout_steps = {self.eval.n_rollout_steps}")
         w = self.data.write_every
@@ -248,6 +298,10 @@ class Experiment:
                     f"M = {m} does not divide data.write_every = {w}: the solver at coarsening M takes "
                     f"write_every / M substeps of M dt per stored frame; possible M: "
                     f"{[k for k in range(1, w + 1) if w % k == 0]}")
+        for i, n in enumerate(self.study.substeps):
+            require(w % n == 0, f"study.substeps[{i}]", f"L = {n} does not divide data.write_every = {w}")
+        if self.study.authors_force_data:
+            from_mapping(Data, merge(to_mapping(self.data), self.study.authors_force_data), "study.authors_force_data")
 
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
@@ -302,5 +356,22 @@ def train_fingerprint(exp: Experiment, model: str, metadata_text: str) -> str:
     core's source is deliberately not part of it, so that a core edit that leaves the data unchanged
     does not throw away hours of training."""
     code = files_digest([HERE / f for f in ("model.py", "train.py", "common.py")])
+    train = to_mapping(exp.train)
+    # only the model's own training noise (GNS: noise_std, SitL: sitl_noise_std)
+    train.pop("sitl_noise_std" if model == "gns" else "noise_std")
     return digest({"data": data_config_digest(exp), "metadata": metadata_text, "model": to_mapping(exp.model),
-                   "train": to_mapping(exp.train), "name": model, "code": code})
+                   "train": train, "name": model, "code": code})
+
+
+def authors_force_experiment(exp: Experiment) -> Experiment:
+    """The experiment of the study's authors'-force dataset: `data` overridden by
+    study.authors_force_data (the paper's resolution and frame interval on cpu), no training."""
+    extra = exp.study.authors_force_data or {}
+    data = from_mapping(Data, merge(to_mapping(exp.data), extra), "study.authors_force_data")
+    train = exp.train
+    windows = data.frames[1] // (exp.model.input_seq_length + exp.eval.n_rollout_steps) * data.seeds
+    if train.eval_n_trajs > windows:  # never trained: only its validation check must pass
+        from dataclasses import replace
+        train = replace(train, eval_n_trajs=max(1, windows))
+    return Experiment(data=data, model=exp.model, train=train, eval=exp.eval, fig3=exp.fig3, cost=exp.cost,
+                      study=exp.study, models=("solver",))

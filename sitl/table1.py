@@ -1,6 +1,7 @@
 """Table 1 (Toshev et al. 2024): RPF 2D, 20-step test rollouts, solver only vs GNS vs SitL, our
-measured values beside the paper's. Reads results/<profile>/sitl/metrics/<model>.json (written by
-sitl/evaluate.py) and writes results/<profile>/table1/table1.csv and table1.md.
+measured values (mean over the test windows of every seed, with a 95 % bootstrap interval over the
+windows) beside the paper's, and paired comparisons of the models on the same windows. Reads results/<profile>/sitl/metrics/<model>.json (written by
+sitl/evaluate.py) and writes results/<profile>/table1/table1.csv, comparisons.csv and table1.md.
 
     python sitl/table1.py --profile smoke
 """
@@ -9,6 +10,7 @@ import json
 from pathlib import Path
 
 from sitl import settings as S
+from sitl import stats
 from sph.harness.cli import profile_main
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
@@ -38,24 +40,50 @@ def rows(measured: dict) -> list:
         row = {"metric": label}
         for m in models:
             row[f"{m}_ours"] = measured[m][key]
+            lo, hi = measured[m].get(f"ci_{key}", (None, None))
+            row[f"{m}_lo"], row[f"{m}_hi"] = lo, hi
             row[f"{m}_paper"] = PAPER[key][S.MODELS.index(m)]
         table.append(row)
     for key, label in (("s_per_coarse_step", "inference s / coarse step"), ("train_steps", "training steps"),
-                       ("train_wall_s", "training wall s"), ("n_rollouts", "test rollouts")):
+                       ("train_wall_s", "training wall s"), ("noise_std", "training noise_std"),
+                       ("n_rollouts", "test windows")):
         table.append({"metric": label, **{f"{m}_ours": measured[m].get(key) for m in models}})
     return table
 
 
-def ordering(measured: dict) -> str:
-    """Whether the paper's ordering (solver only worst, SitL best) holds, per metric."""
+PAIRS = (("sitl", "solver"), ("gns", "solver"), ("sitl", "gns"))
+
+
+def comparisons(measured: dict, n_boot: int) -> list:
+    """Paired comparisons on the same test windows: mean(a) / mean(b) per metric with its paired
+    bootstrap interval (sitl/stats.py) and whether a is lower, higher or undecided."""
+    out = []
+    for a, b in PAIRS:
+        if a not in measured or b not in measured:
+            continue
+        for key, label in LABELS.items():
+            wa, wb = (measured[m].get("per_window", {}).get(key) for m in (a, b))
+            if not wa or not wb or len(wa) != len(wb):
+                continue
+            r, lo, hi = stats.paired_ratio(wa, wb, n_boot)
+            out.append({"a": a, "b": b, "metric": label, "ratio": r, "lo": lo, "hi": hi,
+                        "verdict": stats.verdict(lo, hi)})
+    return out
+
+
+def ordering(measured: dict, comps: list) -> str:
+    """Whether the paper's ordering (SitL below GNS below solver only) holds per metric, decided by
+    the paired intervals: 'holds' when both steps are significant, 'reversed' when one step is
+    significantly the other way, else 'undecided'."""
     if not all(m in measured for m in S.MODELS):
         return "not all three models evaluated"
     out = []
-    for key, label in LABELS.items():
-        v = {m: measured[m][key] for m in S.MODELS}
-        holds = v["sitl"] <= v["gns"] <= v["solver"]
-        out.append(f"{label}: {'holds' if holds else 'does not hold'} "
-                   f"(best {min(v, key=lambda m: v[m] if v[m] == v[m] else float('inf'))})")
+    for label in LABELS.values():
+        v = {(c["a"], c["b"]): c["verdict"] for c in comps if c["metric"] == label}
+        steps = [v.get(("sitl", "gns")), v.get(("gns", "solver"))]
+        word = ("holds" if all(s == "lower" for s in steps) else
+                "does not hold" if any(s == "higher" for s in steps) else "undecided")
+        out.append(f"{label}: {word} (SitL vs GNS {steps[0]}, GNS vs solver {steps[1]})")
     return "; ".join(out)
 
 
@@ -67,31 +95,51 @@ def fmt(x) -> str:
     return f"{x:.3g}"
 
 
-def write(results, models=S.MODELS, profile: str = "") -> Path:
+def fmt_ci(row: dict, m: str) -> str:
+    v, lo, hi = row.get(f"{m}_ours"), row.get(f"{m}_lo"), row.get(f"{m}_hi")
+    if lo is None or hi is None:
+        return fmt(v)
+    return f"{fmt(v)} [{fmt(lo)}, {fmt(hi)}]"
+
+
+def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Path:
     measured = load_metrics(results, models)
     table = rows(measured)
+    comps = comparisons(measured, n_boot)
     dest = Path(results) / "table1"
     dest.mkdir(parents=True, exist_ok=True)
-    fields = ["metric"] + [f"{m}_{w}" for m in models for w in ("ours", "paper")]
+    fields = ["metric"] + [f"{m}_{w}" for m in models for w in ("ours", "lo", "hi", "paper")]
     with (dest / "table1.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
         for row in table:
             w.writerow({k: row.get(k, "") for k in fields})
+    with (dest / "comparisons.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["a", "b", "metric", "ratio", "lo", "hi", "verdict"])
+        w.writeheader()
+        w.writerows(comps)
     head = "| metric | " + " | ".join(f"{COLUMNS[m]} (ours) | {COLUMNS[m]} (paper)" for m in models) + " |"
+    n = measured[models[0]].get("n_rollouts")
     lines = [f"# Table 1, RPF 2D, profile {profile or Path(results).name}", "",
+             f"Ours: mean over {n} test windows [95 % bootstrap interval over the windows].", "",
              head, "|" + "---|" * (1 + 2 * len(models))]
     for row in table:
-        lines.append(f"| {row['metric']} | " + " | ".join(f"{fmt(row.get(f'{m}_ours'))} | {fmt(row.get(f'{m}_paper'))}"
+        lines.append(f"| {row['metric']} | " + " | ".join(f"{fmt_ci(row, m)} | {fmt(row.get(f'{m}_paper'))}"
                                                          for m in models) + " |")
-    lines += ["", f"Paper's ordering (solver only worst, SitL best): {ordering(measured)}.", ""]
+    if comps:
+        lines += ["", "Paired comparisons on the same windows: ratio of means [95 % paired bootstrap interval].", "",
+                  "| a / b | metric | ratio | verdict |", "|---|---|---|---|"]
+        lines += [f"| {COLUMNS[c['a']]} / {COLUMNS[c['b']]} | {c['metric']} | {fmt(c['ratio'])} "
+                  f"[{fmt(c['lo'])}, {fmt(c['hi'])}] | a {c['verdict']} |" for c in comps]
+    lines += ["", f"Paper's ordering (SitL < GNS < solver only): {ordering(measured, comps)}.", ""]
     (dest / "table1.md").write_text("\n".join(lines))
     print("\n".join(lines))
     return dest
 
 
 def main(args):
-    write(args.results, S.load(args.profile).models, args.profile)
+    exp = S.load(args.profile)
+    write(args.results, exp.models, args.profile, exp.eval.bootstrap)
 
 
 if __name__ == "__main__":

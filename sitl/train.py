@@ -25,10 +25,10 @@ from sitl import settings as S
 from sph.harness.cli import profile_main
 
 
-def trainer_configs(exp: S.Experiment, run_name: str):
+def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
     t = exp.train
     cfg_train = {
-        "batch_size": 1, "step_max": t.step_max, "num_workers": t.num_workers, "noise_std": t.noise_std,
+        "batch_size": 1, "step_max": t.step_max, "num_workers": t.num_workers, "noise_std": t.noise(kind),
         "optimizer": {"lr_start": t.lr_start, "lr_final": t.lr_final, "lr_decay_rate": t.lr_decay_rate,
                       "lr_decay_steps": t.lr_decay_steps},
         "pushforward": {"steps": [-1], "unrolls": [0], "probs": [1]},
@@ -65,15 +65,18 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     side.write_text(json.dumps(record, indent=2) + "\n")
 
     data_train, data_valid, _ = C.datasets(exp, path)
-    case = C.case(exp, data_train)
+    case = C.case(exp, data_train, kind)
     model = C.model(exp, kind, data_train, case)
-    cfg_train, cfg_eval, cfg_logging = trainer_configs(exp, f"{kind}_{data_train.name}")
+    cfg_train, cfg_eval, cfg_logging = trainer_configs(exp, f"{kind}_{data_train.name}", kind)
     trainer = Trainer(model, case, data_train, data_valid, cfg_train=cfg_train, cfg_eval=cfg_eval,
                       cfg_logging=cfg_logging, input_seq_length=exp.model.input_seq_length, seed=exp.train.seed)
     resume = (ckp / "params_tree.pkl").exists()
     step0 = json.loads((ckp / "metadata_ckp.json").read_text())["step"] if resume else 0
+    seeds = sorted({data_valid.seed_of(i) for i in range(exp.train.eval_n_trajs)})
     print(f"train {kind}: {'resuming at step ' + str(step0) if resume else 'from scratch'}, "
-          f"step_max {exp.train.step_max}, {len(data_train)} training samples", flush=True)
+          f"step_max {exp.train.step_max}, noise {exp.train.noise(kind):g}, lr {exp.train.lr_start:g}, "
+          f"{len(data_train)} training samples, best checkpoint on {exp.train.eval_n_trajs} validation windows "
+          f"of seeds {seeds}", flush=True)
     t0 = time.perf_counter()
     params, state, _ = trainer.train(step_max=exp.train.step_max, store_ckp=str(ckp),
                                      load_ckp=str(ckp) if resume else None)
@@ -86,7 +89,9 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     best = json.loads((ckp / "best" / "metadata_ckp.json").read_text())
     record["segments"].append({"from_step": step0, "to_step": exp.train.step_max, "wall_s": wall})
     record.update(wall_s=record["wall_s"] + wall, complete=True, step_max=exp.train.step_max,
-                  best_step=best["step"], best_val_mse20=best["loss"],
+                  best_step=best["step"], best_val_mse20=best["loss"], noise_std=exp.train.noise(kind),
+                  lr_start=exp.train.lr_start, seed=exp.train.seed, valid_windows=exp.train.eval_n_trajs,
+                  valid_seeds=seeds,
                   s_per_step=wall / max(1, exp.train.step_max - step0))
     side.write_text(json.dumps(record, indent=2) + "\n")
     print(f"train {kind}: done in {wall:.0f} s ({record['s_per_step']:.3f} s/step); best val MSE_20 "

@@ -1,7 +1,9 @@
 """The SitL haiku module (sitl/model.py), run in .venv-lb (it needs LagrangeBench's GNS): with the
 correction off it equals our solver's coarse substeps exactly, and the gradient through it (GNN
 weights -> L SPH substeps -> output) agrees with central finite differences along one weight
-direction (float64). FAILS, not skips, when .venv-lb is missing."""
+direction (float64); the untrained SitL (last layer zero) equals the solver alone on a batch; its
+graph equals LagrangeBench's own; evaluation windows come from every seed. FAILS, not skips, when
+.venv-lb is missing."""
 import json
 import os
 import subprocess
@@ -77,6 +79,10 @@ _GRADIENT = _COMMON + textwrap.dedent(
     """
     m = M.build("sitl", meta, stats, r0, cfg, dtype)
     params, state = m.init(jax.random.PRNGKey(0), (features, ptype))
+    # the last layer starts at zero (no gradient reaches the layers below it then): a trained one
+    last = M.last_layer(params)
+    params = {**params, last: jax.tree_util.tree_map(
+        lambda x: 0.1 * jax.random.normal(jax.random.PRNGKey(3), x.shape, x.dtype), params[last])}
     target = jax.random.normal(jax.random.PRNGKey(1), features["abs_pos"][:, 0].shape, jdt)
 
     def loss(p):
@@ -104,13 +110,121 @@ _GRADIENT = _COMMON + textwrap.dedent(
 )
 
 
-def _run(script: str, dtype: str) -> dict:
+_ZERO_INIT = _COMMON + textwrap.dedent(
+    """
+    # a batch of three different input states, as LagrangeBench's Trainer applies the model (vmapped)
+    batch = []
+    for seed in (3, 4, 5):
+        r = jitter(cartesian([0.0, 0.0], list(box), 0.1), 0.01, seed, box=box)
+        v = np.stack([rpf.u_steady(r[:, 1], 1.0, 0.1) * frame_dt, np.zeros(len(r))], axis=1)
+        batch.append(np.stack([np.mod(r - v, box), r], axis=1))
+    feats = {"abs_pos": jnp.asarray(np.stack(batch), jdt)}
+    ptypes = jnp.zeros((3, len(r0)), jnp.int32)
+    sitl = M.build("sitl", meta, stats, r0, cfg, dtype)
+    solver = M.build("solver", meta, stats, r0, cfg, dtype)
+    p_sitl, s_sitl = sitl.init(jax.random.PRNGKey(0), (features, ptype))
+    p_solver, s_solver = solver.init(jax.random.PRNGKey(0), (features, ptype))
+
+    def apply(model, params, state):
+        f = jax.jit(jax.vmap(lambda x, t: model.apply(params, state, (x, t))[0]["acc"]))
+        return np.asarray(f(feats, ptypes), np.float64)
+
+    a_sitl, a_solver = apply(sitl, p_sitl, s_sitl), apply(solver, p_solver, s_solver)
+    last = M.last_layer(p_sitl)
+    live = dict(p_sitl)
+    live[last] = jax.tree_util.tree_map(lambda x: x + 0.1, p_sitl[last])
+    a_live = apply(sitl, live, s_sitl)
+    others = [k for k in p_sitl if k != last]
+    print(json.dumps({
+        "max_diff": float(np.abs(a_sitl - a_solver).max()), "scale": float(np.abs(a_solver).max()),
+        "last_layer_zero": bool(all(float(jnp.abs(x).max()) == 0.0 for x in jax.tree_util.tree_leaves(p_sitl[last]))),
+        "others_nonzero": bool(all(any(float(jnp.abs(x).max()) > 0 for x in jax.tree_util.tree_leaves(p_sitl[k]))
+                                   for k in others if "linear" in k)),
+        "n_others": len(others),
+        "live_diff": float(np.abs(a_live - a_solver).max()), "finite": bool(np.isfinite(a_sitl).all()),
+        "batch_differs": float(np.abs(a_solver[0] - a_solver[1]).max())}))
+    """
+)
+
+_EDGES = textwrap.dedent(
+    """
+    import json, sys, warnings
+    warnings.simplefilter("ignore")
+    from pathlib import Path
+    from sitl import common as C
+    import jax, jax.numpy as jnp, numpy as np
+    from sph.lattice import cartesian, jitter
+    from sitl import model as M, settings as S
+
+    exp = S.load("smoke")
+    path = Path(sys.argv[2])
+    data_train, _, _ = C.datasets(exp, path)
+    case = C.case(exp, data_train, "sitl")
+    meta = data_train.metadata
+    box = np.array([1.0, 2.0])
+    setup = M.make_setup(meta, case.normalization_stats, data_train[0][0][:, 0], exp.model.substeps)
+    n = data_train[0][0].shape[0]
+    frames = {f"train[{k}]": data_train[k] for k in (0, 17)}
+    # a strongly jittered lattice: many pairs within 0.3 dx of the radius 1.45 dx (the diagonal 1.41 dx)
+    rj = np.mod(jitter(cartesian([0.0, 0.0], list(box), meta["dx"]), 0.2 * meta["dx"], 7, box=box), box)
+    frames["jittered"] = (np.stack([rj, rj, rj], axis=1).astype(np.float32), data_train[0][1])
+    out = {}
+    for name, (pos, ptype) in frames.items():
+        sample = (jnp.asarray(pos[:, :3]), jnp.asarray(ptype))    # a training sample: 2 inputs + target
+        _, lb_features, _, _ = case.allocate(jax.random.PRNGKey(0), sample, noise_std=0.0)   # LagrangeBench's own
+        r = jnp.asarray(pos[:, 1], jnp.float32)
+        u = (r - jnp.asarray(pos[:, 0])) / setup.frame_dt
+        nbrs = setup.graph_search.update(r, setup.graph_nbrs)
+        ours = M.graph_features(setup, r, u, nbrs)
+        lb, mine = M.edge_set(lb_features, n), M.edge_set(ours, n)
+        verlet = int((np.asarray(nbrs.idx) < n).sum()) + n          # the list's pairs, plus self edges
+        d = np.asarray(r)[:, None] - np.asarray(r)[None]
+        d -= box * np.round(d / box)
+        dist = np.sqrt((d ** 2).sum(-1)) / meta["default_connectivity_radius"]
+        near = int(((dist > 0.95) & (dist < 1.05)).sum())
+        out[name] = {"lb": len(lb), "ours": len(mine), "equal": lb == mine, "verlet": verlet,
+                     "only_lb": len(lb - mine), "only_ours": len(mine - lb), "near_radius": near,
+                     "overflow": bool(nbrs.did_buffer_overflow),
+                     "self_edges": sum(1 for i, j in lb if i == j)}
+    print(json.dumps(out))
+    """
+)
+
+_INTERLEAVED = textwrap.dedent(
+    """
+    import json, sys, warnings
+    warnings.simplefilter("ignore")
+    from pathlib import Path
+    from sitl import common as C
+    import numpy as np
+    from sitl import generate, settings as S
+
+    exp = S.load("smoke", overrides={"data": {"frames": [8, 8, 15], "profile_window": 3, "seeds": 3},
+                                     "eval": {"n_rollout_steps": 5}, "fig3": {"stamps": [0, 5]},
+                                     "train": {"eval_n_trajs": 1}})
+    n = exp.data.n_particles
+    pos = np.random.default_rng(0).uniform(0, 1, (3, 31, n, 2)).astype(np.float32)
+    path = Path(sys.argv[2])
+    generate.write(path, exp, pos, np.arange(31) * 0.02, {"dt": 0.002, "steps": 100})
+    _, valid, test = C.datasets(exp, path)
+    found = []
+    for i in range(test.num_samples):
+        w, _ = test[i]                         # (N, 7, 2): which seed, which start frame?
+        hits = [(s, f) for s in range(3) for f in range(16, 31 - 6)
+                if np.array_equal(w.transpose(1, 0, 2), pos[s, f:f + 7])]
+        found.append(hits)
+    print(json.dumps({"n": test.num_samples, "found": found, "seeds": [test.seed_of(i) for i in range(test.num_samples)]}))
+    """
+)
+
+
+def _run(script: str, dtype: str, *args) -> dict:
     if not LB_PYTHON.exists() or not (ROOT / ".venv-lb" / ".stamp").exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
     env = dict(os.environ, PYTHONPATH=str(ROOT), JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1", WANDB_MODE="disabled")
     env.pop("VIRTUAL_ENV", None)
-    proc = subprocess.run([str(LB_PYTHON), "-c", script, dtype], cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=900)
+    proc = subprocess.run([str(LB_PYTHON), "-c", script, dtype, *map(str, args)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-4000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -129,3 +243,50 @@ def test_gradient_through_sitl_matches_finite_differences():
     assert out["grad_finite"]
     assert abs(out["ad"]) > 0
     assert out["rel"] < 1e-6, out
+
+
+def test_untrained_sitl_equals_solver_only_on_a_batch():
+    """The corrector's last layer starts at zero (model.zero_last_layer), so the untrained SitL model
+    is the solver alone, on every sample of a batch, to round-off; the corrector is live (a non-zero
+    last layer changes the output) and only its last layer is zero."""
+    out = _run(_ZERO_INIT, "float32")
+    assert out["finite"] and out["last_layer_zero"] and out["others_nonzero"] and out["n_others"] > 3, out
+    assert out["batch_differs"] > 1e-3 * out["scale"], out        # three different states
+    assert out["max_diff"] <= 1e-6 * out["scale"], out
+    assert out["live_diff"] > 0.05, out                            # normalised units: the corrector acts
+
+
+def _smoke_dataset() -> Path:
+    """The smoke dataset (make sitl-data PROFILE=smoke, ~30 s when missing)."""
+    path = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    if not (path / "generate.json").exists():
+        env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")
+        env.pop("VIRTUAL_ENV", None)
+        proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke"], cwd=ROOT, env=env, capture_output=True,
+                              text=True, timeout=900)
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return path
+
+
+def test_corrector_edges_are_lagrangebench_graph():
+    """The corrector's edges at its input frame are exactly LagrangeBench's graph there (its own
+    neighbour search, case.allocate, on the same positions): pairs closer than the connectivity
+    radius, self edges included, no skin edges although the Verlet list behind them holds more
+    pairs. Two training frames of the smoke data and a jittered lattice with many pairs near the
+    radius."""
+    out = _run(_EDGES, "float32", _smoke_dataset())
+    for name, o in out.items():
+        assert not o["overflow"], (name, o)
+        assert o["equal"] and o["only_lb"] == o["only_ours"] == 0, (name, o)
+        assert o["self_edges"] == 200 and o["lb"] > 200, (name, o)
+        assert o["verlet"] > o["ours"], (name, o)                  # skin pairs exist and are left out
+    assert out["jittered"]["near_radius"] > 50, out                # the mask's boundary is exercised
+
+
+def test_evaluation_windows_come_round_robin_from_every_seed(tmp_path):
+    """sitl.common.Interleaved: test (and validation) window i is window i // S of seed i % S, so the
+    first n windows (LagrangeBench's n_trajs) cover every seed; every window is found in the data."""
+    out = _run(_INTERLEAVED, "float32", tmp_path)
+    assert out["n"] == 6 and out["seeds"] == [0, 1, 2, 0, 1, 2]
+    # windows of 7 frames cut from the 15 test frames (frames 16..30 of each seed): starts 16 and 23
+    assert out["found"] == [[[0, 16]], [[1, 16]], [[2, 16]], [[0, 23]], [[1, 23]], [[2, 23]]], out["found"]

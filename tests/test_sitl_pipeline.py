@@ -1,6 +1,8 @@
 """End to end: `make table1 fig3 PROFILE=smoke` (dataset generation with our solver, validation,
 GNS and SitL training with LagrangeBench's Trainer, test-set inference with its metrics, Table 1
-and Fig. 3), then an interrupted training continuing from its checkpoint. Runs .venv-lb through
+and Fig. 3), checked beyond finiteness (solver only against a bound from the data alone, the
+spread of every number, the paper's training settings), then an interrupted training continuing
+from its checkpoint. Runs .venv-lb through
 make; FAILS, not skips, when .venv-lb is missing."""
 import csv
 import json
@@ -9,6 +11,8 @@ import os
 import subprocess
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -19,6 +23,23 @@ def _env():
     env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
     env.pop("VIRTUAL_ENV", None)
     return env
+
+
+def _frozen_mse5(path: Path, n_windows: int) -> float:
+    """MSE_5 of particles frozen at the last input frame, over the first test windows (22 frames:
+    2 inputs, 20 targets; one seed): the mean over k = 1..5 of the mean squared periodic
+    displacement between frame 1 and frame 1 + k of each window."""
+    box = np.array([1.0, 2.0])
+    with h5py.File(path / "test.h5", "r") as f:
+        pos = f["00000/position"][:].astype(np.float64)
+    out = []
+    for w in range(n_windows):
+        ref = pos[22 * w + 1]
+        for k in range(1, 6):
+            d = pos[22 * w + 1 + k] - ref
+            d -= box * np.round(d / box)
+            out.append(np.mean(np.sum(d**2, axis=-1)))
+    return float(np.mean(out))
 
 
 def test_table1_and_fig3_smoke():
@@ -35,6 +56,23 @@ def test_table1_and_fig3_smoke():
             assert math.isfinite(v) and v >= 0, (metric, m, v)
             assert float(rows[metric][f"{m}_paper"]) > 0
     assert "Solver only (paper)" in (RESULTS / "table1" / "table1.md").read_text()
+    # every number with its spread: per-window values, a bootstrap interval around the mean
+    for m in ("solver", "gns", "sitl"):
+        met = json.loads((RESULTS / "sitl" / "metrics" / f"{m}.json").read_text())
+        assert met["n_rollouts"] == 2 and len(met["per_window"]["mse20"]) == 2 and met["window_seeds"] == [0, 0]
+        lo, hi = met["ci_mse20"]
+        assert lo <= met["mse20"] <= hi, (m, met["ci_mse20"])
+        assert float(rows["MSE_20"][f"{m}_lo"]) == pytest.approx(lo)
+    # solver only tracks the flow: its MSE_5 far below what particles frozen at the last input frame
+    # would score, computed from the test data alone (the frame-to-frame displacements)
+    frozen = _frozen_mse5(RESULTS / "sitl" / "data" / "2D_RPF", n_windows=2)
+    solver = json.loads((RESULTS / "sitl" / "metrics" / "solver.json").read_text())
+    assert frozen > 1e-5, frozen                              # the flow moves
+    assert solver["mse5"] < 1e-3 * frozen, (solver["mse5"], frozen)
+    # the paper's settings were the ones trained
+    for m, noise in (("gns", 1e-3), ("sitl", 1e-5)):
+        tr = json.loads((RESULTS / "sitl" / "ckp" / m / "train.json").read_text())
+        assert tr["noise_std"] == noise and tr["lr_start"] == 1e-3, (m, tr)
     assert (RESULTS / "fig3" / "fig3.png").stat().st_size > 10_000
     meta = json.loads((RESULTS / "sitl" / "data" / "2D_RPF" / "metadata.json").read_text())
     gen = json.loads((RESULTS / "sitl" / "data" / "2D_RPF" / "generate.json").read_text())

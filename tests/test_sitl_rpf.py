@@ -74,15 +74,22 @@ def test_settings_validate_profiles():
 
 def test_metadata_and_stats(tmp_path):
     """metadata.json keys LagrangeBench reads, frame interval dt * write_every, and the statistics
-    in per-frame displacement units across the periodic boundary."""
+    in per-frame displacement units across the periodic boundary, on motion with NON-ZERO
+    accelerations: x_i(t) = x_i0 + v_i t + a_i t^2 / 2 (t in frames), wrapped into the box, so that
+    the per-frame velocity of frame pair (t, t+1) is v_i + a_i (t + 1/2) and the acceleration a_i
+    exactly; the expected statistics are computed from these formulas, not from the positions."""
     exp = S.load("smoke", overrides={"data": {"frames": [8, 8, 8], "profile_window": 3},
                                      "eval": {"n_rollout_steps": 5, "n_trajs": 1}, "fig3": {"stamps": [0, 5]},
                                      "train": {"eval_n_trajs": 1}})
     n = exp.data.n_particles
     rng = np.random.default_rng(0)
-    base = rng.uniform(0, 1, (1, 1, n, 2)) * np.array([1.0, 2.0])
-    steps = np.arange(24)[None, :, None, None] * np.array([0.01, 0.0])
-    pos = np.mod(base + steps, np.array([1.0, 2.0])).astype(np.float32)
+    box = np.array([1.0, 2.0])
+    base = rng.uniform(0, 1, (n, 2)) * box
+    v = np.stack([rng.normal(0.02, 0.01, n), rng.normal(0.0, 0.005, n)], axis=1)
+    a = np.stack([rng.normal(3e-3, 2e-3, n), rng.normal(-1e-3, 1e-3, n)], axis=1)
+    t = np.arange(24, dtype=np.float64)[:, None, None]
+    pos = np.mod(base + v * t + 0.5 * a * t**2, box).astype(np.float32)[None]   # crosses the boundary
+    assert (np.abs(np.diff(pos[0, :8], axis=0)) > 0.5).any()                      # some particles wrap
     info = {"dt": 0.002, "steps": 100}
     meta = generate.write(tmp_path, exp, pos, np.arange(24) * 0.02, info)
     assert json.loads((tmp_path / "metadata.json").read_text()) == meta
@@ -91,6 +98,33 @@ def test_metadata_and_stats(tmp_path):
     assert meta["bounds"] == [[0.0, 1.0], [0.0, 2.0]]
     assert meta["default_connectivity_radius"] == pytest.approx(1.45 * exp.data.dx)
     assert meta["num_particles_max"] == n
-    np.testing.assert_allclose(meta["vel_mean"], [0.01, 0.0], atol=1e-6)   # wraps are undone
-    np.testing.assert_allclose(meta["vel_std"], [0.0, 0.0], atol=1e-6)
-    np.testing.assert_allclose(meta["acc_mean"], [0.0, 0.0], atol=1e-6)
+    # the 8 training frames: 7 velocities (t = 0..6), 6 accelerations per particle
+    vel = v[None] + a[None] * (np.arange(7)[:, None, None] + 0.5)
+    acc = np.broadcast_to(a, (6, n, 2))
+    # float32 positions (~1e-7 of the box) limit the stored differences to ~1e-7 absolute
+    np.testing.assert_allclose(meta["vel_mean"], vel.reshape(-1, 2).mean(0), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(meta["vel_std"], vel.reshape(-1, 2).std(0), rtol=1e-3)
+    np.testing.assert_allclose(meta["acc_mean"], acc.reshape(-1, 2).mean(0), rtol=0, atol=2e-6)
+    np.testing.assert_allclose(meta["acc_std"], acc.reshape(-1, 2).std(0), rtol=2e-2)
+    assert min(np.abs(meta["acc_mean"])) > 5e-4 and min(meta["acc_std"]) > 5e-4   # really non-zero
+
+
+def test_settings_are_the_papers():
+    """Paper App. B.2: lr 1e-3; training noise 1e-3 for GNS and 1e-5 for SitL, in every profile;
+    checkpoint selection on >= 25 validation windows and tests on every seed where data allow it."""
+    for p in ("smoke", "cpu", "paper"):
+        t = S.load(p).train
+        assert t.lr_start == 1e-3 and t.noise_std == 1e-3 and t.sitl_noise_std == 1e-5, (p, t)
+        assert t.noise("gns") == 1e-3 and t.noise("sitl") == t.noise("solver") == 1e-5
+    for p in ("cpu", "paper"):
+        exp = S.load(p)
+        assert exp.train.eval_n_trajs >= 25 and exp.eval.n_trajs == -1, p
+    assert 1e-5 in S.load("cpu").study.noise and 3e-4 in S.load("cpu").study.noise
+    with pytest.raises(sph.ConfigError, match=r"study\.substeps\[0\]: L = 3 does not divide data\.write_every = 20"):
+        S.load("cpu", overrides={"study": {"substeps": [3]}})
+    with pytest.raises(sph.ConfigError, match=r"study\.authors_force_data\.dxx"):
+        S.load("cpu", overrides={"study": {"authors_force_data": {"dxx": 0.1}}})
+    with pytest.raises(sph.ConfigError, match=r"train\.eval_n_trajs: 60 exceeds the 50 windows"):
+        S.load("cpu", overrides={"train": {"eval_n_trajs": 60}})
+    af = S.authors_force_experiment(S.load("cpu")).data
+    assert (af.dx, af.dt * af.write_every) == (0.025, pytest.approx(0.01))   # the paper's resolution and interval

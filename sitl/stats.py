@@ -1,0 +1,65 @@
+"""Spread of the test metrics (issue 21, "honest statistics"): every number of Table 1 and of the
+study is a mean over test windows (20-step rollouts from 22-frame windows of every seed); its
+spread is a percentile bootstrap over those windows, and a comparison of two models evaluated on
+the same windows is a paired bootstrap of the ratio of their means (the same resampled windows in
+numerator and denominator, so that a window hard for both does not count as a difference).
+
+Windows are not independent samples of the flow (consecutive windows of one trajectory are
+correlated), so these intervals are a lower bound of the spread; a second training seed (the study's
+`train_seeds`) shows the spread between trainings, which the windows cannot.
+"""
+import math
+
+import numpy as np
+
+LEVEL = 0.95
+
+
+def _finite(values) -> np.ndarray:
+    v = np.asarray(values, np.float64)
+    if v.ndim != 1 or len(v) == 0:
+        raise ValueError(f"stats: expected a non-empty 1-D list of per-window values, got shape {v.shape}")
+    return v
+
+
+def _resample(n: int, n_boot: int, seed: int) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+
+
+def bootstrap_ci(values, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) -> tuple:
+    """(lo, hi): the percentile bootstrap interval of the mean of `values` (one per window). NaN when
+    any window is not finite (a diverged rollout: its mean is not finite either) and when there is
+    one window (no spread can be estimated from one)."""
+    v = _finite(values)
+    if not np.all(np.isfinite(v)):
+        return (math.nan, math.nan)
+    if len(v) == 1:  # no spread can be estimated from one window
+        return (math.nan, math.nan)
+    means = v[_resample(len(v), n_boot, seed)].mean(axis=1)
+    a = (1.0 - level) / 2
+    return (float(np.quantile(means, a)), float(np.quantile(means, 1.0 - a)))
+
+
+def paired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) -> tuple:
+    """(mean(a) / mean(b), lo, hi) with the paired bootstrap interval of the ratio: a and b are the
+    per-window values of two models on the same windows, in the same order. NaN when either has a
+    non-finite window; the interval NaN for one window."""
+    va, vb = _finite(a), _finite(b)
+    if va.shape != vb.shape:
+        raise ValueError(f"stats: paired values of different lengths {len(va)} and {len(vb)}")
+    if not (np.all(np.isfinite(va)) and np.all(np.isfinite(vb))) or vb.mean() <= 0:
+        return (math.nan, math.nan, math.nan)
+    ratio = float(va.mean() / vb.mean())
+    if len(va) == 1:
+        return (ratio, math.nan, math.nan)
+    idx = _resample(len(va), n_boot, seed)
+    r = va[idx].mean(axis=1) / vb[idx].mean(axis=1)
+    lo, hi = (1.0 - level) / 2, 1.0 - (1.0 - level) / 2
+    return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
+
+
+def verdict(lo: float, hi: float) -> str:
+    """A ratio interval against 1: 'lower', 'higher' or 'undecided' (it contains 1, or is NaN)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return "undecided"
+    return "lower" if hi < 1.0 else "higher" if lo > 1.0 else "undecided"

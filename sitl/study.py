@@ -1,0 +1,414 @@
+"""When does SitL beat the solver alone? (issue 21) The decisive runs, each trained / evaluated once,
+cached and resumable like Table 1's, gathered into one table and one figure:
+
+  reference      the solver alone at SitL's L = model.substeps, GNS and SitL at the paper's settings
+                 (App. B.2: lr 1e-3; noise 1e-3 GNS, 1e-5 SitL); with no study.overrides these are
+                 Table 1's own runs (same folder, trained once)
+  noise          SitL trained at each study.noise (paper 1e-5; 3e-4 was LagrangeBench's default)
+  seed           SitL at the paper's settings with another training seed: spread between trainings
+  coarse         where the solver alone fails: the solver and SitL at L = study.substeps substeps per
+                 frame (M = write_every / L), SitL at the paper's noise
+  equal_cost     GNS trained for as many steps as fit in the reference SitL's training wall time at
+                 GNS's own measured seconds per step (both include their validation rollouts)
+  authors_force  the solver alone (L = model.substeps) with the authors' uniform force beside the
+                 per-particle one, at study.authors_force_data's resolution and frame interval (cpu:
+                 the paper's dx 0.025, frames every 0.01), no training
+
+Every number is a mean over the test windows of every seed with a 95 % bootstrap interval over the
+windows; each model is also compared with the solver alone at its own L (GNS: at model.substeps) on
+the same windows, as a paired ratio of MSE_20 with its interval (sitl/stats.py).
+
+A run whose settings equal the profile's lives in the profile's own folder (results/<profile>/sitl,
+Table 1's); any other in results/<profile>/sitl_study/runs/<name>/sitl with the profile's dataset
+linked in. Training resumes from its checkpoint, a finished training or a current evaluation is not
+repeated (sitl/train.py, sitl/evaluate.py), so `make sitl-study` can be killed and re-run, and
+`--only` runs a subset. Writes results/<profile>/sitl_study/study.{csv,md,png,json}.
+
+    .venv-lb/bin/python sitl/study.py --profile smoke [--only sitl_L2 solver_L2]
+"""
+import csv
+import dataclasses
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from sitl import settings as S
+from sitl import stats
+from sph.harness.cli import profile_main, select
+from sph.harness.configtools import merge
+
+HERE = Path(__file__).resolve().parent
+GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force")
+PAPER_SOLVER = {"mse5": 1.7e-7, "mse20": 7.9e-6, "e_kin": 0.13, "sinkhorn": 3.4e-7}  # paper Table 1
+
+
+@dataclasses.dataclass(frozen=True)
+class Run:
+    """One run: `name` is its folder / row, `overrides` its keys over the study's base profile."""
+
+    name: str
+    kind: str
+    group: str
+    label: str
+    overrides: dict = dataclasses.field(default_factory=dict)
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def runs(exp: S.Experiment) -> list:
+    """The study's runs in the order they are made (most informative first)."""
+    st, t = exp.study, exp.train
+    l0, w = exp.model.substeps, exp.data.write_every
+    out = [Run(f"solver_L{l0}", "solver", "reference", f"solver only, L={l0} (M={_g(w / l0)})"),
+           Run("gns", "gns", "reference", f"GNS, noise {_g(t.noise_std)}"),
+           Run("sitl", "sitl", "reference", f"SitL, L={l0}, noise {_g(t.sitl_noise_std)}")]
+    for n in st.substeps:
+        if n == l0:
+            continue
+        sub = {"model": {"substeps": n}}
+        out.append(Run(f"solver_L{n}", "solver", "coarse", f"solver only, L={n} (M={_g(w / n)})", sub))
+        out.append(Run(f"sitl_L{n}", "sitl", "coarse", f"SitL, L={n} (M={_g(w / n)}), noise {_g(t.sitl_noise_std)}",
+                       sub))
+    if st.gns_equal_cost:
+        out.append(Run("gns_equal_cost", "gns", "equal_cost", "GNS at SitL's training wall time"))
+    for n in st.noise:
+        if n != t.sitl_noise_std:
+            out.append(Run(f"sitl_noise{_g(n)}", "sitl", "noise", f"SitL, L={l0}, noise {_g(n)}",
+                           {"train": {"sitl_noise_std": n}}))
+    for seed in st.train_seeds:
+        if seed != t.seed:
+            out.append(Run(f"sitl_seed{seed}", "sitl", "seed", f"SitL, L={l0}, noise {_g(t.sitl_noise_std)}, "
+                                                                f"training seed {seed}", {"train": {"seed": seed}}))
+    out.append(Run("authors_force", "solver", "authors_force", f"solver only, L={l0}: per-particle vs authors' "
+                                                                "uniform force"))
+    return out
+
+
+def study_dir(results) -> Path:
+    return Path(results) / "sitl_study"
+
+
+def run_experiment(profile: str, exp: S.Experiment, run: Run, extra: dict = None) -> S.Experiment:
+    """The profile with study.overrides, then the run's own keys (and `extra`, e.g. a step budget)."""
+    over = merge(merge(exp.study.overrides or {}, run.overrides), extra or {})
+    return S.load(profile, overrides=over) if over else exp
+
+
+def run_results(results, profile_exp: S.Experiment, run_exp: S.Experiment, run: Run, own_data: bool = False) -> Path:
+    """Table 1's folder when the run's settings are the profile's own, else its own folder with the
+    profile's dataset linked in (`own_data`: a folder for a dataset of its own)."""
+    if run_exp is not None and run_exp == profile_exp and not own_data:
+        return Path(results)
+    own = study_dir(results) / "runs" / run.name
+    if own_data:
+        return own
+    link = S.data_dir(own)
+    if not link.is_symlink():
+        link.parent.mkdir(parents=True, exist_ok=True)
+        if link.exists():
+            raise FileExistsError(f"{link}: expected a link to the profile's dataset, found a folder")
+        link.symlink_to(os.path.relpath(S.data_dir(results).resolve(), link.parent.resolve()),
+                        target_is_directory=True)
+    return own
+
+
+def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
+    """GNS's step budget at the reference SitL's training wall time, from the two reference runs'
+    training records (measured once, then kept in budget.json so that the run's key is stable)."""
+    side = study_dir(results) / "runs" / "gns_equal_cost" / "budget.json"
+    if side.exists():
+        return json.loads(side.read_text())
+    ref = {}
+    for r in runs(exp):
+        if r.group == "reference" and r.kind in ("gns", "sitl"):
+            rexp = run_experiment(profile, exp, r)
+            tj = S.ckpt_dir(run_results(results, exp, rexp, r), r.kind) / "train.json"
+            rec = json.loads(tj.read_text()) if tj.exists() else {}
+            if not rec.get("complete"):
+                raise FileNotFoundError(f"{tj}: the reference {r.kind} must be trained first")
+            ref[r.kind] = rec
+            base = rexp
+    steps = max(1, int(round(ref["sitl"]["wall_s"] / ref["gns"]["s_per_step"])))
+    t = base.train
+    budget = {"sitl_train_wall_s": ref["sitl"]["wall_s"], "gns_s_per_step": ref["gns"]["s_per_step"],
+              "step_max": steps,
+              "overrides": {"train": {"step_max": steps,
+                                      "lr_decay_steps": float(t.lr_decay_steps) * steps / t.step_max,
+                                      "eval_steps": max(1, min(steps, int(round(t.eval_steps * steps / t.step_max)))),
+                                      "log_steps": max(1, int(round(t.log_steps * steps / t.step_max)))}}}
+    side.parent.mkdir(parents=True, exist_ok=True)
+    side.write_text(json.dumps(budget, indent=2) + "\n")
+    return budget
+
+
+def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
+    """The authors' force bug (sitl/authors_force.py) on the study's authors'-force dataset, which is
+    generated in a subprocess (the data run is float64, which must not switch this process)."""
+    from sitl import authors_force as AF
+    from sph.harness.keys import digest, files_digest
+
+    base = run_experiment(profile, exp, run)
+    afexp = S.authors_force_experiment(base)
+    if exp.study.authors_force_data:
+        own = run_results(results, exp, afexp, run, own_data=True)
+        cmd = [sys.executable, str(HERE / "generate.py"), "--profile", profile, "--results", str(own),
+               "--authors-force", "--no-progress"]
+        print(f"study: the authors'-force dataset: {' '.join(cmd[1:])}", flush=True)
+        subprocess.run(cmd, check=True)
+    else:  # the profile's own dataset
+        own = study_dir(results) / "runs" / run.name
+        run_results(results, exp, None, run)
+    side = own / "authors_force.json"
+    path = S.data_dir(own)
+    key = digest({"data": (path / "generate.json").read_text(), "model": dataclasses.asdict(afexp.model),
+                  "eval": dataclasses.asdict(afexp.eval), "code": files_digest([HERE / "authors_force.py",
+                                                                                HERE / "model.py", HERE / "common.py",
+                                                                                HERE / "evaluate.py"])})
+    if side.exists():
+        done = json.loads(side.read_text())
+        if done.get("key") == key:
+            print(f"study: authors_force up to date ({side})", flush=True)
+            return done
+    out = {"key": key, "dx": afexp.data.dx, "frame_dt": afexp.data.dt * afexp.data.write_every,
+           "n_particles": afexp.data.n_particles,
+           "per_particle": AF.evaluate(afexp, own, "per_particle"), "uniform": AF.evaluate(afexp, own, "uniform")}
+    side.write_text(json.dumps(out, indent=2) + "\n")
+    return out
+
+
+def make_run(profile: str, exp: S.Experiment, results, run: Run) -> dict:
+    """Train (if a network) and evaluate one run; returns its row."""
+    from sitl import evaluate, train
+
+    if run.group == "authors_force":
+        return {"run": run, "authors_force": authors_force(profile, exp, results, run)}
+    extra = equal_cost_budget(profile, exp, results)["overrides"] if run.group == "equal_cost" else None
+    rexp = run_experiment(profile, exp, run, extra)
+    folder = run_results(results, exp, rexp, run)
+    shared = folder == Path(results)
+    print(f"study: {run.name} ({run.label}) in {folder}", flush=True)
+    rec = train.train(rexp, folder, run.kind)
+    met = evaluate.evaluate(rexp, folder, run.kind, rollouts=shared, sinkhorn=shared, timing=shared)
+    return {"run": run, "exp": rexp, "folder": str(folder), "shared": shared, "train": rec, "metrics": met}
+
+
+def reference_of(run: Run, exp: S.Experiment, rows: dict):
+    """The solver-only row a run is compared with: the solver at the run's own L (GNS: model.substeps)."""
+    if run.kind == "solver":
+        return None
+    subs = run.overrides.get("model", {}).get("substeps", exp.model.substeps) if run.kind == "sitl" \
+        else exp.model.substeps
+    return rows.get(f"solver_L{subs}")
+
+
+def table(exp: S.Experiment, rows: dict) -> list:
+    """Flat rows of study.csv."""
+    w, n_boot = exp.data.write_every, exp.eval.bootstrap
+    out = []
+    for name, r in rows.items():
+        run = r["run"]
+        if run.group == "authors_force":
+            af = r["authors_force"]
+            for force in ("per_particle", "uniform"):
+                m = af[force]
+                out.append({"name": f"authors_force_{force}", "group": run.group, "kind": "solver",
+                            "label": f"solver only, {force.replace('_', '-')} force, dx {af['dx']:g}, frames every "
+                                     f"{af['frame_dt']:g} ({af['n_particles']} particles)",
+                            **{k: m.get(k) for k in ("mse5", "mse20", "e_kin", "sinkhorn")},
+                            "mse20_lo": m["ci_mse20"][0], "mse20_hi": m["ci_mse20"][1],
+                            "n_windows": m["n_rollouts"], "finite": m["finite"]})
+            continue
+        m, rexp, tr = r["metrics"], r["exp"], r["train"]
+        subs = rexp.model.substeps if run.kind != "gns" else None
+        row = {"name": name, "group": run.group, "kind": run.kind, "label": run.label,
+               "L": subs, "M": w / subs if subs else w,
+               "noise_std": rexp.train.noise(run.kind) if run.kind != "solver" else None,
+               "lr_start": rexp.train.lr_start if run.kind != "solver" else None,
+               "seed": rexp.train.seed if run.kind != "solver" else None,
+               "train_steps": tr.get("step_max"), "train_wall_s": tr.get("wall_s"),
+               "s_per_step": tr.get("s_per_step"), "best_step": tr.get("best_step"),
+               **{k: m.get(k) for k in ("mse5", "mse20", "e_kin", "sinkhorn")},
+               "mse20_lo": m["ci_mse20"][0], "mse20_hi": m["ci_mse20"][1], "n_windows": m["n_rollouts"],
+               "finite": m["finite"], "shared_with_table1": r["shared"], "folder": r["folder"]}
+        ref = reference_of(run, exp, rows)
+        if ref is not None:
+            ratio, lo, hi = stats.paired_ratio(m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"],
+                                               n_boot)
+            row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
+                       verdict=stats.verdict(lo, hi) if ref["metrics"]["finite"] or not m["finite"]
+                       else "lower (solver diverged)")
+            if not ref["metrics"]["finite"] and m["finite"]:
+                row.update(ratio_mse20=0.0, ratio_lo=0.0, ratio_hi=0.0)
+        out.append(row)
+    return out
+
+
+COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
+           "train_wall_s", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
+           "n_windows", "finite", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict", "shared_with_table1",
+           "folder"]
+
+
+def _f(x) -> str:
+    if x is None or x == "":
+        return ""
+    if isinstance(x, bool):
+        return str(x)
+    if isinstance(x, int):
+        return str(x)
+    if isinstance(x, float) and not math.isfinite(x):
+        return "diverged" if math.isnan(x) or x > 0 else str(x)
+    return f"{x:.3g}"
+
+
+def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
+    d = exp.data
+    lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
+             f"{d.dt * d.write_every:g}, W = {d.write_every})", "",
+             "MSE_20: mean over the test windows of every seed [95 % bootstrap interval over the windows]; "
+             "vs solver: MSE_20 / the solver alone's at the same L on the same windows [95 % paired interval].", "",
+             "| run | M | noise | training steps (wall s) | MSE_5 | MSE_20 | MSE_Ekin | vs solver | |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in flat:
+        if r["group"] == "authors_force":
+            continue
+        tr = "" if r["kind"] == "solver" else f"{r['train_steps']} ({_f(r['train_wall_s'])})"
+        vs = "" if r.get("vs") is None else f"{_f(r['ratio_mse20'])} [{_f(r['ratio_lo'])}, {_f(r['ratio_hi'])}]"
+        mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
+        lines.append(f"| {r['label']} | {_f(r['M'])} | {_f(r['noise_std'])} | {tr} | {_f(r['mse5'])} | {mse20} | "
+                     f"{_f(r['e_kin'])} | {vs} | {r.get('verdict', '')} |")
+    if budget:
+        lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps = the reference SitL's training wall "
+                      f"{budget['sitl_train_wall_s']:.0f} s at GNS's measured {budget['gns_s_per_step']:.3g} s / step "
+                      "(both including their validation rollouts)."]
+    af = [r for r in flat if r["group"] == "authors_force"]
+    if af:
+        lines += ["", "The authors' force bug (solver only, no training):", "",
+                  "| force | MSE_5 | MSE_20 | MSE_Ekin | Sinkhorn |", "|---|---|---|---|---|"]
+        lines += [f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}] | "
+                  f"{_f(r['e_kin'])} | {_f(r['sinkhorn'])} |" for r in af]
+        lines.append("| paper's solver only (Table 1) | " + " | ".join(_f(PAPER_SOLVER[k]) for k in
+                                                                      ("mse5", "mse20", "e_kin", "sinkhorn")) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(exp: S.Experiment, flat: list, path: Path, title: str):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    by = {r["name"]: r for r in flat}
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+    ok = [r["mse20"] for r in flat if r["finite"] and r["mse20"] > 0]
+    top = max(ok, default=1.0) * 10
+
+    def err(r):
+        return np.array([[r["mse20"] - r["mse20_lo"]], [r["mse20_hi"] - r["mse20"]]])
+
+    # (a) SitL's training noise against the solver alone (and GNS), at SitL's L
+    l0 = exp.model.substeps
+    noise = sorted([r for r in flat if r["kind"] == "sitl" and r["L"] == l0 and r["group"] in ("reference", "noise")],
+                   key=lambda r: r["noise_std"])
+    floor = min([r["noise_std"] for r in noise if r["noise_std"] > 0], default=1e-5) / 10
+    for i, r in enumerate(noise):
+        x = r["noise_std"] if r["noise_std"] > 0 else floor
+        y = r["mse20"] if r["finite"] else top
+        ax1.errorbar([x], [y], yerr=err(r) if r["finite"] else None, fmt="D" if r["finite"] else "x", color="C1",
+                     label="SitL" if i == 0 else None, capsize=3)
+    for r in flat:
+        if r["group"] == "seed":
+            ax1.errorbar([r["noise_std"] * 1.15], [r["mse20"]], yerr=err(r) if r["finite"] else None, fmt="s",
+                         color="C4", capsize=3, label=f"SitL, training seed {r['seed']}")
+    for name, color, lab in ((f"solver_L{l0}", "C0", f"solver only (L={l0})"), ("gns", "C2", "GNS"),
+                             ("gns_equal_cost", "C2", "GNS at SitL's training wall time")):
+        r = by.get(name)
+        if r and r["finite"]:
+            ax1.axhline(r["mse20"], color=color, ls="-" if name != "gns_equal_cost" else "--", lw=1, label=lab)
+            ax1.axhspan(r["mse20_lo"], r["mse20_hi"], color=color, alpha=0.15)
+    ax1.set_xscale("log")
+    ax1.set_yscale("log")
+    ax1.set(xlabel=f"SitL training noise std (0 plotted at {floor:g})", ylabel="test MSE$_{20}$",
+            title="SitL's training noise")
+    ax1.grid(True, which="both", alpha=0.3)
+    ax1.legend(fontsize=7)
+    # (b) temporal coarsening: the solver alone and SitL against M
+    for kind, marker, color, lab in (("solver", "o", "C0", "solver only"), ("sitl", "D", "C1", "SitL")):
+        pts = sorted([r for r in flat if r["kind"] == kind and r["group"] in ("reference", "coarse")],
+                     key=lambda r: r["M"])
+        if not pts:
+            continue
+        ax2.plot([r["M"] for r in pts], [r["mse20"] if r["finite"] else top for r in pts], "-", color=color,
+                 alpha=0.4)
+        for i, r in enumerate(pts):
+            ax2.errorbar([r["M"]], [r["mse20"] if r["finite"] else top], yerr=err(r) if r["finite"] else None,
+                         fmt=marker if r["finite"] else "x", color=color, capsize=3, label=lab if i == 0 else None)
+            if not r["finite"]:
+                ax2.annotate("diverged", (r["M"], top), textcoords="offset points", xytext=(4, -10), fontsize=7)
+    ax2.set_xscale("log")
+    ax2.set_yscale("log")
+    ax2.set(xlabel="temporal coarsening M (fine steps per substep; L = W / M substeps)",
+            ylabel="test MSE$_{20}$", title="coarser solver steps")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def write_csv(flat: list, path: Path):
+    tmp = path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        for r in flat:
+            w.writerow({k: r.get(k) for k in COLUMNS})
+    tmp.replace(path)
+
+
+def run(profile: str, results, only=None) -> list:
+    from sitl import generate
+
+    exp = S.load(profile)
+    generate.ready(exp, results)  # the profile's dataset (make sitl-data) must exist
+    plan = runs(exp)
+    names = select("--only", only, [r.name for r in plan])
+    rows = {}
+    for r in plan:
+        if names is not None and r.name not in names:
+            continue
+        rows[r.name] = make_run(profile, exp, results, r)
+    flat = table(exp, rows)
+    out = study_dir(results)
+    out.mkdir(parents=True, exist_ok=True)
+    budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
+    budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
+    write_csv(flat, out / "study.csv")
+    md = markdown(exp, flat, profile, budget)
+    (out / "study.md").write_text(md)
+    d = exp.data
+    plot(exp, flat, out / "study.png", f"SitL study, RPF 2D, {profile}: {d.n_particles} particles, "
+                                       f"W = {d.write_every}; mean over test windows, 95 % bootstrap intervals")
+    (out / "study.json").write_text(json.dumps({"profile": profile, "runs": [r for r in flat],
+                                                "budget": budget}, indent=2, default=str) + "\n")
+    print(md, flush=True)
+    print(f"study: {len(flat)} rows -> {out / 'study.csv'}, study.md, study.png", flush=True)
+    return flat
+
+
+def options(ap):
+    ap.add_argument("--only", nargs="*", default=None, help="run only these runs (names of sitl/study.py's runs)")
+
+
+def main(args):
+    run(args.profile, args.results, args.only)
+
+
+if __name__ == "__main__":
+    profile_main(main, __doc__, options)

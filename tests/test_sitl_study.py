@@ -1,0 +1,125 @@
+"""`make sitl-study PROFILE=smoke` (sitl/study.py, in .venv-lb through make) into a private results
+folder: every kind of run of the study once, tiny (study.overrides of the smoke profile: 2 training
+steps, a 4-wide network, one test window), its table and figure, and a second call that repeats
+nothing. Shares the smoke dataset of results/smoke when there is one (copied, as test_sitl_cost).
+
+Checked beyond "it ran": the equal-cost GNS's step budget recomputed from the two reference
+training records; each run trained with its own settings (noise, substeps); SitL compared with the
+solver alone at its own L on the same windows; the authors' uniform force far worse on the kinetic
+energy than the per-particle force (half of the fluid pushed the wrong way), and the per-particle
+run equal to the study's own solver-only run (the same model on the same window). FAILS, not skips,
+when .venv-lb is missing."""
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from sitl import settings as S
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _env():
+    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
+    env.pop("VIRTUAL_ENV", None)
+    return env
+
+
+def _make(results):
+    t0 = time.perf_counter()
+    proc = subprocess.run(["make", "sitl-study", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=_env(),
+                          capture_output=True, text=True, timeout=1800)
+    return proc, time.perf_counter() - t0
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    if not (ROOT / ".venv-lb" / ".stamp").exists():
+        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+    results = tmp_path_factory.mktemp("results")
+    shared = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    if (shared / "generate.json").exists():
+        shutil.copytree(shared, S.data_dir(results))
+    proc, wall = _make(results)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    out = results / "sitl_study"
+    with (out / "study.csv").open() as f:
+        rows = {r["name"]: r for r in csv.DictReader(f)}
+    print(f"make sitl-study PROFILE=smoke: {wall:.0f} s")
+    return results, rows, proc.stdout, wall
+
+
+def test_every_run_is_made_and_tabled(study):
+    results, rows, _, _ = study
+    assert set(rows) == {"solver_L3", "gns", "sitl", "solver_L1", "sitl_L1", "gns_equal_cost", "sitl_noise0.0003",
+                         "authors_force_per_particle", "authors_force_uniform"}, sorted(rows)
+    out = results / "sitl_study"
+    assert (out / "study.png").stat().st_size > 10_000
+    md = (out / "study.md").read_text()
+    assert "Equal cost: GNS trained" in md and "paper's solver only" in md
+    for name, r in rows.items():
+        assert int(r["n_windows"]) == 1, r
+        assert r["finite"] in ("True", "False") and (r["finite"] == "False" or float(r["mse20"]) > 0), r
+    # nothing of the study went into Table 1's folders: smoke's study runs all differ from the profile
+    assert not (S.out_dir(results) / "ckp").exists()
+
+
+def test_runs_trained_with_their_own_settings(study):
+    results, rows, _, _ = study
+    runs = results / "sitl_study" / "runs"
+    expect = {"sitl": ("sitl", 1e-5), "sitl_L1": ("sitl", 1e-5), "sitl_noise0.0003": ("sitl", 3e-4),
+              "gns": ("gns", 1e-3), "gns_equal_cost": ("gns", 1e-3)}
+    for name, (kind, noise) in expect.items():
+        tr = json.loads((S.ckpt_dir(runs / name, kind) / "train.json").read_text())
+        assert tr["complete"] and tr["noise_std"] == noise and tr["lr_start"] == 1e-3, (name, tr)
+        assert float(rows[name]["noise_std"]) == noise
+    assert rows["sitl_L1"]["L"] == "1" and float(rows["sitl_L1"]["M"]) == 10.0
+    # the linked dataset is the profile's own (one dataset, not a copy per run)
+    assert S.data_dir(runs / "sitl").is_symlink()
+    assert S.data_dir(runs / "sitl").resolve() == S.data_dir(results).resolve()
+
+
+def test_sitl_is_compared_with_the_solver_at_its_own_substeps(study):
+    rows = study[1]
+    for name, ref in (("sitl", "solver_L3"), ("sitl_L1", "solver_L1"), ("sitl_noise0.0003", "solver_L3"),
+                      ("gns", "solver_L3")):
+        r = rows[name]
+        assert r["vs"] == ref, r
+        if r["finite"] == "True":   # one window: the paired ratio is the ratio of the two MSE_20
+            assert float(r["ratio_mse20"]) == pytest.approx(float(r["mse20"]) / float(rows[ref]["mse20"]), rel=1e-9)
+            assert r["verdict"] in ("lower", "higher", "undecided")
+
+
+def test_equal_cost_budget_from_the_reference_trainings(study):
+    results, rows, _, _ = study
+    runs = results / "sitl_study" / "runs"
+    sitl = json.loads((S.ckpt_dir(runs / "sitl", "sitl") / "train.json").read_text())
+    gns = json.loads((S.ckpt_dir(runs / "gns", "gns") / "train.json").read_text())
+    budget = json.loads((runs / "gns_equal_cost" / "budget.json").read_text())
+    steps = max(1, round(sitl["wall_s"] / gns["s_per_step"]))
+    assert budget["step_max"] == steps and int(rows["gns_equal_cost"]["train_steps"]) == steps, (budget, steps)
+
+
+def test_authors_force(study):
+    rows = study[1]
+    per, uni = rows["authors_force_per_particle"], rows["authors_force_uniform"]
+    # the same module on the same window as the study's own solver-only run
+    assert float(per["mse20"]) == pytest.approx(float(rows["solver_L3"]["mse20"]), rel=1e-4)
+    # the uniform force pushes half of the fluid against its flow: far off in kinetic energy
+    assert float(uni["e_kin"]) > 100 * float(per["e_kin"]), (uni, per)
+    assert float(uni["mse20"]) > 10 * float(per["mse20"])
+
+
+def test_second_call_repeats_nothing(study):
+    results, _, _, _ = study
+    proc, wall = _make(results)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "from scratch" not in proc.stdout and "resuming" not in proc.stdout
+    assert proc.stdout.count("up to date") >= 8, proc.stdout[-3000:]
+    assert math.isfinite(wall)
