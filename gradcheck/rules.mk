@@ -25,7 +25,7 @@ GROWTH_OUT := $(addprefix $(RESULTS)/fig1/,grad_norm_vs_steps.png grad_norm_vs_s
 
 fig1: $(FIG1_OUT)
 $(FIG1_OUT): OUTS := $(FIG1_OUT)
-$(FIG1_OUT) &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py FORCE | $(VENV)
+$(FIG1_OUT) &: $(GRADCHECK_OUT)/check.done $(GRADCHECK)/plot.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(GRADCHECK)/plot.py --profile $(PROFILE) --results $(RESULTS) --what fig1
 
 grad-growth: $(GROWTH_OUT)

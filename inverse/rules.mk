@@ -19,5 +19,5 @@ inverse: $(INVERSE_RUNS)
 
 fig2: $(FIG2_OUT)
 $(FIG2_OUT): OUTS := $(FIG2_OUT)
-$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py FORCE | $(VENV)
+$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(INVERSE)/plot.py --profile $(PROFILE) --results $(RESULTS)

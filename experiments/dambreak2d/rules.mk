@@ -30,7 +30,7 @@ dambreak2d: $(DB2D_METRICS)
 
 fig8: $(FIG8_OUT) $(RESULTS)/fig8/fig8.gif
 $(FIG8_OUT): OUTS := $(FIG8_OUT)
-$(FIG8_OUT) &: $(DB2D_METRICS) $(DB2D_RUNS) $(DB2D)/plot_fig8.py FORCE | $(VENV)
+$(FIG8_OUT) &: $(DB2D_METRICS) $(DB2D_RUNS) $(DB2D)/plot_fig8.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(DB2D)/plot_fig8.py --profile $(PROFILE) --results $(RESULTS)
 
 $(RESULTS)/fig8/fig8.gif: OUTS := $(RESULTS)/fig8/fig8.gif

@@ -20,7 +20,7 @@ $(_runs): FORCE | $(VENV)
 
 $(_fig4): DIR := $(_dir)
 $(_fig4): OUTS := $(_fig4)
-$(_fig4) &: $(_runs) $(_dir)/plot_fig4.py FORCE | $(VENV)
+$(_fig4) &: $(_runs) $(_dir)/plot_fig4.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(DIR)/plot_fig4.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 $(_figs)/fig4/fig4.gif: DIR := $(_dir)
@@ -30,7 +30,7 @@ $(_figs)/fig4/fig4.gif: $(_runs) $(_dir)/plot_fig4.py sph/harness/animate.py FOR
 
 $(_fig5): DIR := $(_dir)
 $(_fig5): OUTS := $(_fig5)
-$(_fig5) &: $(_runs) $(_dir)/plot_fig5.py FORCE | $(VENV)
+$(_fig5) &: $(_runs) $(_dir)/plot_fig5.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(DIR)/plot_fig5.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 .PHONY: $(_name)

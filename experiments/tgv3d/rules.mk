@@ -16,7 +16,7 @@ $(_runs): FORCE | $(VENV)
 _fig9 := $(_figs)/fig9/fig9.png $(_figs)/fig9/fig9.pdf $(_figs)/fig9/metrics.csv
 $(_fig9): DIR := $(_dir)
 $(_fig9): OUTS := $(_fig9)
-$(_fig9) &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py FORCE | $(VENV)
+$(_fig9) &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(DIR)/plot_fig9.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 .PHONY: $(_name)

@@ -26,10 +26,10 @@ FIG10_OUT := $(addprefix $(RESULTS)/fig10/,fig10.png fig10.pdf fig10_series.png 
 
 heat-validation: $(HEAT_OUT)
 $(HEAT_OUT): OUTS := $(HEAT_OUT)
-$(HEAT_OUT) &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py FORCE | $(VENV)
+$(HEAT_OUT) &: $(THERMAL_SINE) $(THERMAL)/plot_heat_validation.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(THERMAL)/plot_heat_validation.py --profile $(PROFILE) --results $(RESULTS)
 
 fig10: $(FIG10_OUT) heat-validation
 $(FIG10_OUT): OUTS := $(FIG10_OUT)
-$(FIG10_OUT) &: $(THERMAL_CHAN) $(THERMAL)/plot_fig10.py FORCE | $(VENV)
+$(FIG10_OUT) &: $(THERMAL_CHAN) $(THERMAL)/plot_fig10.py sph/harness/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(THERMAL)/plot_fig10.py --profile $(PROFILE) --results $(RESULTS)
