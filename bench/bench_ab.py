@@ -1,7 +1,7 @@
 """Benchmark: the step of this working tree against the step of another commit, interleaved.
 
 Each side runs in its own worker process (`import sph` from its own tree: the other commit is checked
-out once as a git worktree under cache/bench_ab/<rev>), builds the same scene, compiles a jitted
+out once as a git worktree under ~/.cache/sph_bench_ab/<rev>), builds the same scene, compiles a jitted
 `lax.scan` chunk of `--steps` steps with the step guard (`make_chunk`, as every run advances) and
 then times rounds on request; the driver alternates ref, this, ref, this, ... over pipes
 (bench/peer_protocol.py), so that this shared machine's load hits both alike. Reported per case:
@@ -88,9 +88,11 @@ def worker(case, steps):
 
 
 def ref_tree(rev):
-    """A worktree of `rev` under cache/bench_ab (made once)."""
+    """A worktree of `rev` outside the repository, under $XDG_CACHE_HOME (default ~/.cache)/sph_bench_ab
+    (made once; outside, so that searches of the tree never see the old code)."""
     sha = subprocess.run(["git", "rev-parse", rev], cwd=ROOT, check=True, capture_output=True, text=True).stdout.strip()
-    path = ROOT / "cache" / "bench_ab" / sha[:12]
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    path = cache / "sph_bench_ab" / sha[:12]
     if not (path / "sph").is_dir():
         subprocess.run(["git", "worktree", "add", "--detach", "-f", str(path), sha], cwd=ROOT, check=True,
                        capture_output=True)
