@@ -2,9 +2,10 @@
 rollouts from every (or `eval.n_trajs`) 22-frame window of test.h5; MSE_5 (`mse5`), MSE_20 (the
 mean position MSE over the 20 steps, LagrangeBench's `loss`), MSE of the kinetic energy (`e_kin`)
 and the Sinkhorn divergence (`sinkhorn`), averaged over rollouts; each with its per-window values
-and a 95 % bootstrap interval over the windows (`ci_<metric>`, sitl/stats.py). The windows are taken
-round-robin over the seeds (sitl/common.py), all of them by default (eval.n_trajs = -1). GNS and SitL use their best
-checkpoint (by validation MSE_20); "solver" is SitL with the correction off and no weights.
+and a 95 % bootstrap interval over the windows (`ci_<metric>`, sitl/stats.py). The windows are
+taken round-robin over the seeds (sitl/common.py), all of them by default (eval.n_trajs = -1). GNS
+and SitL use their best checkpoint (by validation MSE_20); "solver" is SitL with the correction off
+and no weights.
 
 Also measures the inference cost: seconds per coarse step of the jitted model (median of repeats
 after compilation), for the accuracy-cost comparison.

@@ -58,8 +58,13 @@ def paired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) 
     return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
 
 
-def verdict(lo: float, hi: float) -> str:
-    """A ratio interval against 1: 'lower', 'higher' or 'undecided' (it contains 1, or is NaN)."""
-    if not (math.isfinite(lo) and math.isfinite(hi)):
+MIN_WINDOWS = 10
+"""Fewer windows than this never decide a comparison (a bootstrap over 2 windows is no interval)."""
+
+
+def verdict(lo: float, hi: float, n: int = MIN_WINDOWS) -> str:
+    """A ratio interval against 1 from n windows: 'lower', 'higher' or 'undecided' (it contains 1, is
+    NaN, or rests on fewer than MIN_WINDOWS windows)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)) or n < MIN_WINDOWS:
         return "undecided"
     return "lower" if hi < 1.0 else "higher" if lo > 1.0 else "undecided"

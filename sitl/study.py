@@ -240,7 +240,7 @@ def table(exp: S.Experiment, rows: dict) -> list:
             ratio, lo, hi = stats.paired_ratio(m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"],
                                                n_boot)
             row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
-                       verdict=stats.verdict(lo, hi) if ref["metrics"]["finite"] or not m["finite"]
+                       verdict=stats.verdict(lo, hi, m["n_rollouts"]) if ref["metrics"]["finite"] or not m["finite"]
                        else "lower (solver diverged)")
             if not ref["metrics"]["finite"] and m["finite"]:
                 row.update(ratio_mse20=0.0, ratio_lo=0.0, ratio_hi=0.0)

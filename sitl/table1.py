@@ -1,7 +1,8 @@
 """Table 1 (Toshev et al. 2024): RPF 2D, 20-step test rollouts, solver only vs GNS vs SitL, our
 measured values (mean over the test windows of every seed, with a 95 % bootstrap interval over the
-windows) beside the paper's, and paired comparisons of the models on the same windows. Reads results/<profile>/sitl/metrics/<model>.json (written by
-sitl/evaluate.py) and writes results/<profile>/table1/table1.csv, comparisons.csv and table1.md.
+windows) beside the paper's, and paired comparisons of the models on the same windows. Reads
+results/<profile>/sitl/metrics/<model>.json (written by sitl/evaluate.py) and writes
+results/<profile>/table1/table1.csv, comparisons.csv and table1.md.
 
     python sitl/table1.py --profile smoke
 """
@@ -67,7 +68,7 @@ def comparisons(measured: dict, n_boot: int) -> list:
                 continue
             r, lo, hi = stats.paired_ratio(wa, wb, n_boot)
             out.append({"a": a, "b": b, "metric": label, "ratio": r, "lo": lo, "hi": hi,
-                        "verdict": stats.verdict(lo, hi)})
+                        "verdict": stats.verdict(lo, hi, len(wa))})
     return out
 
 
@@ -130,7 +131,7 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
         lines += ["", "Paired comparisons on the same windows: ratio of means [95 % paired bootstrap interval].", "",
                   "| a / b | metric | ratio | verdict |", "|---|---|---|---|"]
         lines += [f"| {COLUMNS[c['a']]} / {COLUMNS[c['b']]} | {c['metric']} | {fmt(c['ratio'])} "
-                  f"[{fmt(c['lo'])}, {fmt(c['hi'])}] | a {c['verdict']} |" for c in comps]
+                  f"[{fmt(c['lo'])}, {fmt(c['hi'])}] | {COLUMNS[c['a']]} {c['verdict']} |" for c in comps]
     lines += ["", f"Paper's ordering (SitL < GNS < solver only): {ordering(measured, comps)}.", ""]
     (dest / "table1.md").write_text("\n".join(lines))
     print("\n".join(lines))
