@@ -14,16 +14,17 @@ Effects of each), a start relaxed with RELAXATION (`relax`), compared with the a
 
 or in one call `scene, numerics = tgv.setup(0.02, re=100, method="tvf")`.
 """
+import sys
+
 import numpy as np
 
 from ..config import Effects, Material, Numerics
 from ..domain import Domain
-from ..errors import require
 from ..lattice import cartesian, check_run_size, count
 from ..relax import Relaxation
 from ..scene import Scene
 from ..state import FLUID
-from .relaxed import relax_periodic
+from .relaxed import relax_periodic, validated_setup
 
 BOX = (1.0, 1.0)
 """The periodic unit square."""
@@ -68,10 +69,7 @@ def e_kin_exact(t, re: float):
 def setup(dx: float, re: float, method: str = "tvf", relaxation: Relaxation = RELAXATION, progress: bool = True):
     """The validated set-up at spacing dx and Reynolds number re (U = 1): (scene on the start relaxed
     with `relaxation`, or on the bare lattice with None; NUMERICS)."""
-    require(method in METHODS, "method", f"{method!r} is not one of {list(METHODS)}")
-    mat = material(re)
-    r = None if relaxation is None else relax(dx, mat, NUMERICS, relaxation, progress)[0]
-    return scene(dx, mat, METHODS[method], r=r), NUMERICS
+    return validated_setup(sys.modules[__name__], dx, re, method, relaxation, progress)
 
 
 def decay_errors(t, u_max, e_kin, re: float) -> dict:

@@ -23,17 +23,18 @@ sph.cases.tgv3d_reference (apart, so that editing it re-runs nothing):
 or in one call `scene, numerics = tgv3d.setup(dx, re=100, method="tvf")`.
 """
 import math
+import sys
 
 import numpy as np
 
 from ..config import Effects, Material, Numerics
-from ..errors import ConfigError, require
+from ..errors import ConfigError
 from ..domain import Domain
 from ..lattice import cartesian, check_run_size, count
 from ..relax import Relaxation
 from ..scene import Scene
 from ..state import FLUID
-from .relaxed import relax_periodic
+from .relaxed import relax_periodic, validated_setup
 
 SIDE = 2.0 * np.pi
 """Side of the periodic box."""
@@ -66,10 +67,7 @@ def relax(dx: float, material: Material, numerics: Numerics = NUMERICS, relaxati
 def setup(dx: float, re: float, method: str = "tvf", relaxation: Relaxation = RELAXATION, progress: bool = True):
     """The validated set-up at spacing dx and Reynolds number re (U = 1): (scene on the start relaxed
     with `relaxation`, or on the bare lattice with None; NUMERICS)."""
-    require(method in METHODS, "method", f"{method!r} is not one of {list(METHODS)}")
-    mat = material(re)
-    r = None if relaxation is None else relax(dx, mat, NUMERICS, relaxation, progress)[0]
-    return scene(dx, mat, METHODS[method], r=r), NUMERICS
+    return validated_setup(sys.modules[__name__], dx, re, method, relaxation, progress)
 
 
 def e_kin_normalised(e_kin, rho_ref: float = 1.0) -> np.ndarray:
