@@ -71,11 +71,13 @@ import numpy as np
 # LagrangeBench (sitl.common, then lagrangebench.*) is imported only when something is measured:
 # its import takes ~10 s, the up-to-date check of an unchanged call none
 from sitl import generate
+from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
-from sph.harness import keys, runs
+from sph.harness import keys, runs, stamp
 from sph.harness.cli import profile_main
 from sph.harness.configtools import to_mapping
+from sph.harness.deliver import note_input
 from sph.harness.keys import digest
 from sph.harness.record import RECORD_COLUMNS, save_record
 
@@ -139,19 +141,30 @@ def trained_status(exp: S.Experiment, results, kind: str, metadata_text: str):
     else (None, why not)."""
     mpath, ckp = S.metrics_path(results, kind), S.ckpt_dir(results, kind)
     side = ckp / "train.json"
+    note_input(mpath, side)
     if not mpath.exists():
         return None, f"no {mpath} (make table1 / make sitl-study trains and evaluates it)"
     if not side.exists() or not (ckp / "best" / "params_tree.pkl").exists():
         return None, f"no trained checkpoint in {ckp}"
-    rec = json.loads(side.read_text())
+    bad = integrity.unreadable_checkpoint(ckp / "best")
+    rec, met = (_json_or_none(q) for q in (side, mpath))
+    bad = bad or next(((q, "not readable as JSON") for q, v in ((side, rec), (mpath, met)) if v is None), None)
+    if bad is not None:
+        return None, f"{bad[0]} is damaged ({bad[1]}; make table1 / make sitl-study redoes it)"
     if not rec.get("complete") or rec.get("fingerprint") != S.train_fingerprint(exp, kind, metadata_text):
         return None, f"{ckp} was trained on other inputs or is unfinished (make table1 retrains it)"
-    met = json.loads(mpath.read_text())
     if (met.get("train_steps"), met.get("best_step")) != (rec.get("step_max"), rec.get("best_step")):
         return None, f"{mpath} was made from another checkpoint (run sitl/evaluate.py --model {kind})"
     if met.get("n_rollout_steps") != exp.eval.n_rollout_steps or met.get("n_rollouts") != n_rollouts(exp):
         return None, f"{mpath} was evaluated with other eval settings (run sitl/evaluate.py --model {kind})"
     return met, None
+
+
+def _json_or_none(p: Path):
+    try:
+        return json.loads(p.read_text())
+    except ValueError:
+        return None
 
 
 def n_rollouts(exp: S.Experiment) -> int:
@@ -368,7 +381,13 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
             stored = {}
         names = [p.name for p in plan if p.kind not in TRAINED or trained[p.name][0] is not None]
         if stored.get("key") == key and all((S.cost_dir(results) / n / "record.json").exists() for n in names):
-            print(f"cost: up to date ({out / 'cost.csv'})", flush=True)
+            bad = integrity.damaged(out, stored.get("outputs"))
+            if bad is None:
+                stamp_points(results, stored["rows"])
+                print(f"cost: up to date ({out / 'cost.csv'})", flush=True)
+            else:  # the measurements are intact in cost.json: write the table and the figure again
+                print(f"cost: {bad[0]} {bad[1]}; written again from {side.name}", flush=True)
+                write_outputs(stored["rows"], exp, results, profile, key)
             return stored["rows"]
 
     from sitl import common as C  # sets up LagrangeBench first
@@ -435,12 +454,28 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
         folder = cdir / r["name"]
         folder.mkdir(parents=True, exist_ok=True)
         save_record(folder, record(exp, by_name[r["name"]], r))
-    write_csv(rows, out / "cost.csv")
-    plot(rows, out / "cost.png", f"RPF 2D, {d.n_particles} particles ({profile or Path(results).name}): "
-                                  f"coarse step = {d.write_every} dt")
-    side.write_text(json.dumps({"key": key, "rows": rows}, indent=2) + "\n")
+    write_outputs(rows, exp, results, profile, key)
     print(f"cost: {len(rows)} points -> {out / 'cost.csv'}, cost.png, {cdir}/*/record.json", flush=True)
     return rows
+
+
+def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str) -> None:
+    """cost.csv, cost.png, then cost.json (the rows, the key of their inputs and the digests of the
+    two, checked on the next run) and the stamp `cost.done` listing the current points' record
+    folders (the atlas reads exactly those: `sph.harness.stamp.current_folders`)."""
+    out = S.out_dir(results)
+    write_csv(rows, out / "cost.csv")
+    plot(rows, out / "cost.png", f"RPF 2D, {exp.data.n_particles} particles ({profile or Path(results).name}): "
+                                  f"coarse step = {exp.data.write_every} dt")
+    made = integrity.digests(out, ["cost.csv", "cost.png"])
+    (out / "cost.json").write_text(json.dumps({"key": key, "rows": rows, "outputs": made}, indent=2) + "\n")
+    stamp_points(results, rows)
+
+
+def stamp_points(results, rows: list) -> None:
+    """The stamp cost.done: the record folders of exactly the points in `rows` (sph.harness.stamp)."""
+    cdir = S.cost_dir(results)
+    stamp.update(S.out_dir(results) / "cost.done", cdir, noted=[cdir / r["name"] for r in rows])
 
 
 def options(ap):

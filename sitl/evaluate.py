@@ -30,9 +30,11 @@ from lagrangebench.evaluate import averaged_metrics
 from lagrangebench.utils import load_haiku
 
 from sitl import generate
+from sitl import integrity
 from sitl import settings as S
 from sitl import stats
 from sph.harness.cli import profile_main
+from sph.harness.deliver import note_input
 from sph.harness.configtools import to_mapping
 from sph.harness.keys import digest, files_digest
 
@@ -93,11 +95,28 @@ def current(exp: S.Experiment, results, kind: str):
     dest = S.metrics_path(results, kind)
     if kind != "solver" and not (S.ckpt_dir(results, kind) / "train.json").exists():
         return None
+    if not dest.exists():
+        return None
     try:
         out = json.loads(dest.read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError) as e:
+        integrity.set_aside_damaged(dest, f"not readable as JSON: {' '.join(str(e).split())[:80]}",
+                                    then=f"evaluating {kind} again")
         return None
     return out if out.get("inputs") == inputs_key(exp, results, kind) else None
+
+
+def rollouts_intact(results, kind: str, done: dict) -> bool:
+    """The stored rollouts (Fig. 3's input) exist and equal what `evaluate` wrote; a damaged one is
+    named (and the whole evaluation redone, which rewrites them)."""
+    rdir = S.rollout_dir(results, kind)
+    if not rdir.exists():
+        return False
+    bad = integrity.damaged(rdir, done.get("rollout_files"))
+    if bad is not None:
+        print(f"evaluate {kind}: {bad[0]} {bad[1]}; evaluating again", flush=True)
+        return False
+    return True
 
 
 def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force: bool = False,
@@ -108,8 +127,9 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
     path = generate.ready(exp, results)
     if not force:
         done = current(exp, results, kind)
-        if done is not None and (not rollouts or S.rollout_dir(results, kind).exists()) \
+        if done is not None and (not rollouts or rollouts_intact(results, kind, done)) \
                 and (not sinkhorn or "sinkhorn" in done) and (not timing or done.get("s_per_coarse_step")):
+            note_input(*(S.rollout_dir(results, kind) / n for n in done.get("rollout_files", {})))
             print(f"evaluate {kind}: up to date ({S.metrics_path(results, kind)})", flush=True)
             return done
     data_train, _, data_test = C.datasets(exp, path)
@@ -125,6 +145,10 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
         ckp = S.ckpt_dir(results, kind) / "best"
         if not (ckp / "params_tree.pkl").exists():
             raise FileNotFoundError(f"{ckp}: no trained {kind}; run sitl/train.py --model {kind} first")
+        bad = integrity.unreadable_checkpoint(ckp)
+        if bad is not None:
+            raise ValueError(f"{bad[0]}: {bad[1]}; `make table1` (sitl/train.py --model {kind}) sets the "
+                             "checkpoint aside and trains again")
         params, state, _, _ = load_haiku(str(ckp))
     rdir = S.rollout_dir(results, kind)
     if rdir.exists():
@@ -156,6 +180,9 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
         tr = json.loads(train_json.read_text())
         out.update(train_steps=tr.get("step_max"), train_wall_s=tr.get("wall_s"), best_step=tr.get("best_step"),
                    train_s_per_step=tr.get("s_per_step"))
+    if rollouts:
+        out["rollout_files"] = integrity.digests(rdir, sorted(p.name for p in rdir.glob("*.pkl")))
+        note_input(*(rdir / n for n in out["rollout_files"]))
     out["inputs"] = inputs_key(exp, results, kind)
     dest = S.metrics_path(results, kind)
     dest.parent.mkdir(parents=True, exist_ok=True)

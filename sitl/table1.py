@@ -30,7 +30,10 @@ def load_metrics(results, models) -> dict:
         p = S.metrics_path(results, m)
         if not p.exists():
             raise FileNotFoundError(f"{p}: missing; run sitl/evaluate.py --model {m}")
-        out[m] = json.loads(p.read_text())
+        try:
+            out[m] = json.loads(p.read_text())
+        except ValueError as e:
+            raise ValueError(f"{p}: damaged ({e}); `make table1` sets it aside and evaluates {m} again") from None
     return out
 
 

@@ -20,9 +20,11 @@ import jax
 from lagrangebench import Trainer
 
 from sitl import generate
+from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
 from sph.harness.cli import profile_main
+from sph.harness.deliver import note_input
 
 
 def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
@@ -52,15 +54,21 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     ckp = S.ckpt_dir(results, kind)
     side = ckp / "train.json"
     fp = S.train_fingerprint(exp, kind, (path / "metadata.json").read_text())
-    record = json.loads(side.read_text()) if side.exists() else {}
+    record = read_record(side)
     if record.get("fingerprint") != fp:
         if ckp.exists():
             print(f"train {kind}: inputs changed, starting afresh in {ckp}", flush=True)
             shutil.rmtree(ckp)
-        record = {"fingerprint": fp, "model": kind, "wall_s": 0.0, "segments": []}
-    elif record.get("complete"):
-        print(f"train {kind}: up to date ({ckp})", flush=True)
-        return record
+        record = fresh_record(fp, kind)
+    else:
+        bad = damaged_checkpoint(ckp, record)
+        if bad is not None:
+            integrity.set_aside_damaged(*bad, then=f"training {kind} again", whole=ckp)
+            record = fresh_record(fp, kind)
+        elif record.get("complete"):
+            note_input(*(ckp / n for n in record.get("files", {})))
+            print(f"train {kind}: up to date ({ckp})", flush=True)
+            return record
     ckp.mkdir(parents=True, exist_ok=True)
     side.write_text(json.dumps(record, indent=2) + "\n")
 
@@ -92,11 +100,41 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
                   best_step=best["step"], best_val_mse20=best["loss"], noise_std=exp.train.noise(kind),
                   lr_start=exp.train.lr_start, seed=exp.train.seed, valid_windows=exp.train.eval_n_trajs,
                   valid_seeds=seeds,
-                  s_per_step=wall / max(1, exp.train.step_max - step0))
+                  s_per_step=wall / max(1, exp.train.step_max - step0),
+                  files=integrity.digests(ckp, checkpoint_files()))
+    note_input(*(ckp / n for n in record.get("files", {})))
     side.write_text(json.dumps(record, indent=2) + "\n")
     print(f"train {kind}: done in {wall:.0f} s ({record['s_per_step']:.3f} s/step); best val MSE_20 "
           f"{best['loss']:.3g} at step {best['step']}", flush=True)
     return record
+
+
+def read_record(side) -> dict:
+    """train.json, or {} when there is none or it cannot be read (then training starts afresh)."""
+    try:
+        return json.loads(side.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def fresh_record(fp: str, kind: str) -> dict:
+    return {"fingerprint": fp, "model": kind, "wall_s": 0.0, "segments": []}
+
+
+def checkpoint_files() -> list:
+    """The files of a finished training whose digests train.json keeps: the latest and the best checkpoint."""
+    return [*integrity.CHECKPOINT_FILES, *(f"best/{n}" for n in integrity.CHECKPOINT_FILES)]
+
+
+def damaged_checkpoint(ckp, record: dict):
+    """(file, why) when the checkpoint this training would use is damaged: a finished one that differs
+    from the digests train.json recorded or cannot be read, or the latest one a killed run resumes
+    from that cannot be read; else None."""
+    if record.get("complete"):
+        return integrity.damaged(ckp, record.get("files")) or integrity.unreadable_checkpoint(ckp / "best")
+    if (ckp / "params_tree.pkl").exists():
+        return integrity.unreadable_checkpoint(ckp)
+    return None
 
 
 def options(ap):

@@ -212,7 +212,7 @@ def test_set_aside_copies_are_bounded(tmp_path, capsys):
     f = tmp_path / "traj.h5"
     for i in range(6):
         f.write_text(f"v{i}")
-        runs._set_aside(f, "made from other inputs")
+        runs.set_aside(f, "made from other inputs")
     kept = sorted(p.name for p in tmp_path.iterdir())
     assert kept == [f"traj.h5.stale-{n}" for n in (3, 4, 5)]
     assert (tmp_path / "traj.h5.stale-5").read_text() == "v5"  # the newest ones stay

@@ -134,8 +134,40 @@ def test_unchanged_inputs_are_not_measured_again(cost):
     before = json.loads((S.out_dir(results) / "cost.json").read_text())["key"]
     proc = _make(results)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "cost: up to date" in proc.stdout
+    assert "cost.csv, cost.png, cost.json}: up to date with its runs" in proc.stdout, proc.stdout[-2000:]
+    assert "cost: " not in proc.stdout                       # cost.py was not even started
     assert json.loads((S.out_dir(results) / "cost.json").read_text())["key"] == before
+
+
+def test_damaged_cost_table_is_written_again_without_measuring(cost):
+    """Issue 23, classes 1 and 3 for sitl-cost: a truncated cost.csv is noticed by make's check
+    (sph.harness.deliver) and written again from the measurements kept in cost.json, not re-timed."""
+    results, rows, _ = cost
+    csv_path = S.out_dir(results) / "cost.csv"
+    before = json.loads((S.out_dir(results) / "cost.json").read_text())
+    text = csv_path.read_text()
+    csv_path.write_text(text[: len(text) // 2])
+    proc = _make(results)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "cost.csv differs from what was made" in proc.stdout, proc.stdout[-2000:]
+    assert f"{csv_path} changed since it was written (truncated?); written again from cost.json" in proc.stdout
+    assert csv_path.read_text() == text
+    assert json.loads((S.out_dir(results) / "cost.json").read_text())["rows"] == before["rows"]  # not re-measured
+
+
+def test_atlas_reads_only_the_current_points(cost):
+    """A record folder left from a point no longer configured is not gathered: cost.done (the stamp
+    cost.py writes) lists exactly the current points, as the SPH experiments' stamps do."""
+    results, rows, _ = cost
+    cdir = S.cost_dir(results)
+    stray = cdir / "solver_M7"
+    shutil.copytree(cdir / "solver_M2", stray)
+    try:
+        runs = A.gather(AS.load("smoke"), results)
+        folders = set(runs[runs["experiment"] == "sitl"]["folder"].map(lambda f: Path(f).name))
+        assert folders == set(rows), folders
+    finally:
+        shutil.rmtree(stray)
 
 
 def test_a_coarsening_that_does_not_divide_write_every_is_a_config_error():

@@ -98,3 +98,63 @@ def test_interrupted_training_resumes_from_its_checkpoint():
     again = subprocess.run(cmd, cwd=ROOT, env=dict(_env(), PYTHONPATH=str(ROOT)), capture_output=True, text=True,
                            timeout=900)
     assert again.returncode == 0 and "up to date" in again.stdout
+
+
+# -- issue 23, class 3: damaged SitL files are named, set aside and made again by the next make -----
+def _make_table1():
+    proc = subprocess.run(["make", "table1", "PROFILE=smoke"], cwd=ROOT, env=_env(), capture_output=True,
+                          text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc.stdout
+
+
+def _truncate(p: Path) -> bytes:
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    return data
+
+
+def _table1_rows():
+    with (RESULTS / "table1" / "table1.csv").open() as f:
+        return {r["metric"]: r for r in csv.DictReader(f)}
+
+
+def test_truncated_checkpoint_is_set_aside_and_trained_again():
+    ckp = RESULTS / "sitl" / "ckp" / "gns"
+    if not (ckp / "train.json").exists():
+        pytest.fail("run test_table1_and_fig3_smoke first (it trains the smoke GNS)", pytrace=False)
+    damaged = ckp / "best" / "params_tree.pkl"
+    cut = len(_truncate(damaged)) // 2
+    before = {p.name for p in ckp.parent.glob("gns.stale-*")}
+    out = _make_table1()
+    assert f"{damaged.relative_to(ROOT)} is damaged" in out and "training gns again" in out, out[-3000:]
+    assert "train gns: from scratch" in out
+    (aside,) = {p.name for p in ckp.parent.glob("gns.stale-*")} - before
+    assert (ckp.parent / aside / "best" / "params_tree.pkl").stat().st_size == cut  # kept as it was
+    assert (ckp.parent / aside / "train.json").exists()
+    assert json.loads((ckp / "train.json").read_text())["complete"]
+    assert math.isfinite(float(_table1_rows()["MSE_20"]["gns_ours"]))
+    assert "is damaged" not in _make_table1()                 # repaired: the next make trusts it
+
+
+def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again():
+    """One make repairs all three (the split's regeneration re-evaluates every model anyway)."""
+    data = RESULTS / "sitl" / "data" / "2D_RPF"
+    original = _truncate(data / "test.h5")
+    metrics = RESULTS / "sitl" / "metrics" / "solver.json"
+    good = json.loads(metrics.read_text())
+    metrics.write_text('{"mse5": 1.0, ')                      # cut mid-write
+    table = RESULTS / "table1" / "table1.md"
+    table.write_text(table.read_text()[:100])
+    out = _make_table1()
+    assert f"{(data / 'test.h5').relative_to(ROOT)}: damaged" in out and "generating the dataset again" in out, \
+        out[-3000:]
+    aside = sorted(data.glob("test.h5.stale-*"))[-1]
+    assert len(aside.read_bytes()) == len(original) // 2      # the damaged file is kept as it was
+    assert (data / "test.h5").read_bytes() == original        # regenerated: the same data (deterministic)
+    with h5py.File(data / "test.h5", "r") as f:
+        assert f["00000/position"].shape[0] == 44
+    assert "train gns: up to date" in out                     # same data: the trainings are kept
+    assert f"{metrics.relative_to(ROOT)}: damaged (not readable as JSON" in out and "evaluating solver again" in out
+    assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
+    assert "Solver only (paper)" in table.read_text()

@@ -127,7 +127,7 @@ KEEP_STALE = 3
 """How many set-aside copies (``<file>.stale-<n>``) of one file are kept: the newest ones."""
 
 
-def _set_aside(path: Path, why: str, then: str = "running from scratch") -> None:
+def set_aside(path: Path, why: str, then: str = "running from scratch") -> None:
     """Rename `path` to the next ``<name>.stale-<n>`` and say so in one line; of its set-aside copies
     only the newest KEEP_STALE stay (flipping a setting back and forth does not pile them up)."""
     target, dropped = _move_aside(path)
@@ -200,7 +200,7 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
         print(f"{label}: complete, skipped", flush=True)
         return RunOutcome("skipped", Path(spec.folder))
     if kind in ("stale", "damaged"):
-        _set_aside(spec.traj, "made from other inputs" if kind == "stale" else "damaged or incomplete")
+        set_aside(spec.traj, "made from other inputs" if kind == "stale" else "damaged or incomplete")
     solver = make_solver()
     n_steps = solver.n_steps(spec.t_end)
     write_every = write_every_for(n_steps, spec.frames, spec.frame_dt, solver.dt)
@@ -249,7 +249,7 @@ def _open_checkpoint(spec: RunSpec, solver):
     except (OSError, KeyError, ValueError, TypeError, AttributeError) as e:
         if writer is not None:
             writer.close()
-        _set_aside(spec.traj, f"damaged checkpoint ({' '.join(str(e).split())[:160]})")
+        set_aside(spec.traj, f"damaged checkpoint ({' '.join(str(e).split())[:160]})")
         return None
 
 
@@ -317,7 +317,7 @@ def _positions_locked(path: Path, fingerprint: str, compute: Callable, label: st
     if r is not None:
         return r
     if why is not None:
-        _set_aside(path, f"cached start {why}", then="computing it again")
+        set_aside(path, f"cached start {why}", then="computing it again")
         if side.exists():
             _move_aside(side)
     r, info = compute()
