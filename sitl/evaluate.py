@@ -34,6 +34,7 @@ from sitl import integrity
 from sitl import settings as S
 from sitl import stats
 from sph.harness.cli import profile_main
+from sph.harness.io import OutputError
 from sph.harness.deliver import note_input
 from sph.harness.configtools import to_mapping
 from sph.harness.keys import digest, files_digest
@@ -147,7 +148,7 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
             raise FileNotFoundError(f"{ckp}: no trained {kind}; run sitl/train.py --model {kind} first")
         bad = integrity.unreadable_checkpoint(ckp)
         if bad is not None:
-            raise ValueError(f"{bad[0]}: {bad[1]}; `make table1` (sitl/train.py --model {kind}) sets the "
+            raise OutputError(f"{bad[0]}: {bad[1]}; `make table1` (sitl/train.py --model {kind}) sets the "
                              "checkpoint aside and trains again")
         params, state, _, _ = load_haiku(str(ckp))
     rdir = S.rollout_dir(results, kind)

@@ -41,6 +41,7 @@ from sph.rollout import allocate_covering, make_chunk
 from sitl import integrity
 from sitl import settings as S
 from sph.harness.cli import profile_main
+from sph.harness.io import OutputError
 from sph.harness.deliver import note_input
 
 SPLITS = ("train", "valid", "test")
@@ -370,7 +371,7 @@ def ready(exp: S.Experiment, results) -> Path:
     try:
         check(path, exp, record)
     except Damaged as e:
-        raise ValueError(f"{e.path}: damaged ({e.why}); `make sitl-data` (or any SitL target) sets it aside and "
+        raise OutputError(f"{e.path}: damaged ({e.why}); `make sitl-data` (or any SitL target) sets it aside and "
                          "generates the dataset again") from None
     return path
 

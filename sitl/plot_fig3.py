@@ -20,6 +20,7 @@ import numpy as np  # noqa: E402
 
 from sitl import settings as S  # noqa: E402
 from sph.harness.cli import profile_main  # noqa: E402
+from sph.harness.io import OutputError  # noqa: E402
 from sph.harness.deliver import note_input  # noqa: E402
 
 ROWS = (("truth", "ground truth"), ("solver", "solver only"), ("gns", "GNS"), ("sitl", "SitL"))
@@ -44,7 +45,7 @@ def load(results, exp: S.Experiment) -> dict:
             with p.open("rb") as f:
                 r = pickle.load(f)
         except Exception as e:  # noqa: BLE001 - any failure to read is damage, named with its file
-            raise ValueError(f"{p}: damaged ({type(e).__name__}); `make fig3` evaluates {m} again") from None
+            raise OutputError(f"{p}: damaged ({type(e).__name__}); `make fig3` evaluates {m} again") from None
         out[m] = np.asarray(r["predicted_rollout"])
         out["truth"] = np.asarray(r["ground_truth_rollout"])
     return out

@@ -13,6 +13,7 @@ from pathlib import Path
 from sitl import settings as S
 from sitl import stats
 from sph.harness.cli import profile_main
+from sph.harness.io import OutputError
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
     "mse5": (1.7e-7, 6.7e-9, 3.3e-9),
@@ -33,7 +34,7 @@ def load_metrics(results, models) -> dict:
         try:
             out[m] = json.loads(p.read_text())
         except ValueError as e:
-            raise ValueError(f"{p}: damaged ({e}); `make table1` sets it aside and evaluates {m} again") from None
+            raise OutputError(f"{p}: damaged ({e}); `make table1` sets it aside and evaluates {m} again") from None
     return out
 
 
