@@ -85,10 +85,21 @@ def inputs_key(exp: S.Experiment, results, kind: str) -> str:
     record (the checkpoint it evaluates), the code. An evaluation of the same inputs is not repeated."""
     path = S.data_dir(results)
     train_json = S.ckpt_dir(results, kind) / "train.json"
-    return digest({"data": [(path / "generate.json").read_text(), (path / "metadata.json").read_text()],
+    return digest({"data": [data_identity(path), (path / "metadata.json").read_text()],
                    "model": to_mapping(exp.model), "eval": to_mapping(exp.eval), "dtype": exp.train.dtype,
                    "noise": exp.train.noise(kind), "kind": kind, "code": files_digest(CODE),
                    "train": train_json.read_text() if kind != "solver" else None})
+
+
+def data_identity(path: Path) -> str:
+    """What identifies the dataset's content: its generation fingerprint and configuration and the
+    digest of each file (generate.json), not its timings, so that a dataset generated again to the
+    same files (a damaged split repaired) keeps the evaluations; the whole record when it has no
+    file digests."""
+    gen = json.loads((path / "generate.json").read_text())
+    if not gen.get("files"):
+        return (path / "generate.json").read_text()
+    return digest({k: gen.get(k) for k in ("fingerprint", "config", "files")})
 
 
 def current(exp: S.Experiment, results, kind: str):

@@ -154,7 +154,7 @@ def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(
     assert (data / "test.h5").read_bytes() == original        # regenerated: the same data (deterministic)
     with h5py.File(data / "test.h5", "r") as f:
         assert f["00000/position"].shape[0] == 44
-    assert "train gns: up to date" in out                     # same data: the trainings are kept
+    assert "train gns: up to date" in out and "evaluate gns: up to date" in out  # same data: kept
     assert f"{metrics.relative_to(ROOT)}: damaged (not readable as JSON" in out and "evaluating solver again" in out
     assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
     assert "Solver only (paper)" in table.read_text()
