@@ -251,6 +251,33 @@ def test_the_readme_matches_its_snapshot():
     assert text.count("<!-- table:") == text.count("<!-- /table:")
 
 
+# -- make -j2 ----------------------------------------------------------------------------------------
+TIMING = {"wall_s", "compile_s", "ms_per_step", "peak_rss_mb"}
+
+
+def test_make_j2_gives_the_serial_outputs(smoke, tmp_path):
+    """`make -j2` runs independent run steps at once (Fig. 10's channel and the heat validation's
+    sine runs) and gives what the fixture's serial make gave: every metrics and series table equal
+    column by column (the timings aside), to round-off."""
+    par = tmp_path / "smoke"
+    out = make("-j2", "fig10", "PROFILE=smoke", f"RESULTS={par}")
+    assert "-j" not in out.stderr  # no jobserver warning (recursive makes share the slots)
+    for rel in ("fig10/metrics.csv", "fig10/series.csv", "heat_validation/metrics.csv",
+                "thermal/channel_metrics.csv", "thermal/sine_metrics.csv"):
+        a, b = pd.read_csv(smoke / rel), pd.read_csv(par / rel)
+        assert list(a.columns) == list(b.columns) and len(a) == len(b) > 0, rel
+        for c in a.columns:
+            if c in TIMING:
+                continue
+            if pd.api.types.is_numeric_dtype(a[c]):
+                assert (a[c].isna() == b[c].isna()).all(), (rel, c)
+                pd.testing.assert_series_equal(a[c], b[c], rtol=1e-12, atol=1e-14, obj=f"{rel}:{c}")
+            else:
+                assert a[c].astype(str).tolist() == b[c].astype(str).tolist(), (rel, c)
+    for fig in ("fig10/fig10.png", "heat_validation/heat_validation.png"):
+        assert (par / fig).stat().st_size > 10_000
+
+
 # -- the run-folder lock -----------------------------------------------------------------------------
 def test_a_second_writer_waits_for_the_first_and_says_who_holds_the_folder(tmp_path):
     code = ("import sys, time; from sph.harness.lock import folder_lock\n"
