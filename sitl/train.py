@@ -11,7 +11,6 @@ and is never trained.
     .venv-lb/bin/python sitl/train.py --profile smoke --model sitl
 """
 import json
-import shutil
 import time
 
 from sitl import common as C  # first: it sets up LagrangeBench
@@ -23,6 +22,7 @@ from sitl import generate
 from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
+from sph.harness import runs
 from sph.harness.cli import profile_main
 from sph.harness.deliver import note_input
 
@@ -55,10 +55,12 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     side = ckp / "train.json"
     fp = S.train_fingerprint(exp, kind, (path / "metadata.json").read_text())
     record = read_record(side)
-    if record.get("fingerprint") != fp:
+    if record is None:  # the record itself is damaged: what it describes cannot be trusted
+        integrity.set_aside_damaged(side, "not readable as JSON", then=f"training {kind} again", whole=ckp)
+        record = fresh_record(fp, kind)
+    elif record.get("fingerprint") != fp:
         if ckp.exists():
-            print(f"train {kind}: inputs changed, starting afresh in {ckp}", flush=True)
-            shutil.rmtree(ckp)
+            runs.set_aside(ckp, f"train {kind}: trained on other inputs", then="training afresh")
         record = fresh_record(fp, kind)
     else:
         bad = damaged_checkpoint(ckp, record)
@@ -109,12 +111,15 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     return record
 
 
-def read_record(side) -> dict:
-    """train.json, or {} when there is none or it cannot be read (then training starts afresh)."""
-    try:
-        return json.loads(side.read_text())
-    except (OSError, ValueError):
+def read_record(side):
+    """train.json; {} when there is none, None when it cannot be read (damaged)."""
+    if not side.exists():
         return {}
+    try:
+        record = json.loads(side.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
 
 
 def fresh_record(fp: str, kind: str) -> dict:

@@ -16,6 +16,7 @@ run's metrics row). The run record and the metrics tables are `sph.harness.recor
 `sph.harness.tables`.
 """
 import resource
+import shutil
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -144,7 +145,7 @@ def _move_aside(path: Path):
     path.replace(target)
     dropped = [p for _, p in olds[:max(0, len(olds) + 1 - KEEP_STALE)]]
     for p in dropped:
-        p.unlink(missing_ok=True)
+        shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
     return target, dropped
 
 
