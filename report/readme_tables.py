@@ -10,7 +10,9 @@ records (docs/results/<profile>/), between marker comments:
 Tables (TABLES): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
 `atlas` (the cheapest setting per error level, accuracy/runs.csv) and `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml). Only marked tables are touched;
-a marker whose source is not in the snapshot is an error. --check changes nothing and exits 1 when
+an unknown marker or a missing snapshot is an error; a table whose target is not in the snapshot
+yet says so (no number). Table 1 is taken from the sibling `cpu` snapshot when the paper one has
+none (labelled). --check changes nothing and exits 1 when
 the README differs from what the snapshot gives (tests/test_report.py)."""
 import argparse
 import difflib
@@ -31,11 +33,20 @@ class SourceMissing(FileNotFoundError):
     pass
 
 
+FALLBACK = "cpu"
+"""The profile a target is shown from where the paper profile needs a GPU (Table 1, report.paper)."""
+
+
+def _find(snapshot: Path, rel: str, fallback: bool = False) -> Path:
+    """snapshot/rel, or (fallback) the same file in the sibling snapshot of the `cpu` profile."""
+    for base in (snapshot, snapshot.parent / FALLBACK) if fallback else (snapshot,):
+        if (base / rel).exists():
+            return base / rel
+    raise SourceMissing(f"{snapshot / rel}: not in the snapshot")
+
+
 def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
-    f = snapshot / rel
-    if not f.exists():
-        raise SourceMissing(f"{f}: not in the snapshot")
-    return pd.read_csv(f)
+    return pd.read_csv(_find(snapshot, rel))
 
 
 def pct(v, digits: int = 3) -> str:
@@ -64,11 +75,15 @@ def tgv2d(snapshot: Path) -> list:
 
 
 def table1(snapshot: Path) -> list:
-    t = _csv(snapshot, "table1/table1.csv").set_index("metric")
+    src = _find(snapshot, "table1/table1.csv", fallback=True)
+    t = pd.read_csv(src).set_index("metric")
+    note = [] if src.is_relative_to(snapshot) else \
+        [f"_Profile `{src.parents[1].name}` ({src.parents[1].name}/table1/table1.csv of the snapshot): the paper "
+         "profile needs a GPU._", ""]
     models = [m for m in ("solver", "gns", "sitl") if f"{m}_ours" in t]
     names = {"solver": "solver only", "gns": "GNS", "sitl": "SitL"}
-    lines = ["| metric | " + " | ".join(f"{names[m]} (ours / paper)" for m in models) + " |",
-             "|---|" + "---|" * len(models)]
+    lines = note + ["| metric | " + " | ".join(f"{names[m]} (ours / paper)" for m in models) + " |",
+                    "|---|" + "---|" * len(models)]
     for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
         if metric not in t.index:
             continue
@@ -135,7 +150,15 @@ def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> 
         name = m.group("name")
         if name not in gens:
             raise KeyError(f"{readme}: unknown table marker {name!r} (known: {', '.join(gens)})")
-        return m.group(1) + "\n".join(gens[name]()) + "\n" + m.group(4)
+        try:
+            lines = gens[name]()
+        except SourceMissing as e:
+            if not Path(snapshot).is_dir():
+                raise
+            # a snapshot made before every target ran: the table says so, with no number
+            lines = [f"_Not in this snapshot yet ({e}): the target has not been run for it; "
+                     "`make all`, then `make snapshot readme-tables`._"]
+        return m.group(1) + "\n".join(lines) + "\n" + m.group(4)
 
     return MARKER.sub(sub, text)
 

@@ -238,6 +238,21 @@ def test_readme_tables_unknown_marker_or_missing_source_is_an_error(tmp_path):
     assert readme_tables.main(["--snapshot", str(tmp_path / "none"), "--readme", str(r)]) == 2
 
 
+def test_a_table_whose_target_is_not_in_the_snapshot_says_so_and_table1_falls_back_to_cpu(tmp_path):
+    import shutil
+    snap, cpu = tmp_path / "paper", tmp_path / "cpu"
+    shutil.copytree(FIXTURES / "snapshot" / "paper" / "fig5", snap / "fig5")
+    shutil.copytree(FIXTURES / "snapshot" / "paper" / "table1", cpu / "table1")
+    text = ("<!-- table:atlas -->\n| 1 % | hand-typed | 3 s |\n<!-- /table:atlas -->\n"
+            "<!-- table:table1 -->\n<!-- /table:table1 -->\n")
+    new = readme_tables.regenerate(text, snap, tmp_path / "README.md")
+    atlas_body = new.split("<!-- /table:atlas -->")[0]
+    assert "Not in this snapshot yet" in atlas_body and "hand-typed" not in atlas_body
+    assert not re.search(r"\d+(\.\d+)? ?%", atlas_body.replace("1 %", ""))   # no number without a record
+    t1 = new.split("<!-- table:table1 -->")[1]
+    assert "Profile `cpu`" in t1 and "| MSE_20 |" in t1
+
+
 def test_the_readme_matches_its_snapshot():
     """The README's marked tables are what the committed snapshot gives. Until a snapshot is
     committed, the markers must name tables the generator knows (the fixture test above checks the
