@@ -150,7 +150,6 @@ def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
     """The authors' force bug (sitl/authors_force.py) on the study's authors'-force dataset, which is
     generated in a subprocess (the data run is float64, which must not switch this process)."""
     from sitl import authors_force as AF
-    from sph.harness.keys import digest, files_digest
 
     base = run_experiment(profile, exp, run)
     afexp = S.authors_force_experiment(base)
@@ -164,11 +163,7 @@ def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
         own = study_dir(results) / "runs" / run.name
         run_results(results, exp, None, run)
     side = own / "authors_force.json"
-    path = S.data_dir(own)
-    key = digest({"data": (path / "generate.json").read_text(), "model": dataclasses.asdict(afexp.model),
-                  "eval": dataclasses.asdict(afexp.eval), "code": files_digest([HERE / "authors_force.py",
-                                                                                HERE / "model.py", HERE / "common.py",
-                                                                                HERE / "evaluate.py"])})
+    key = authors_force_key(afexp, own)
     if side.exists():
         done = json.loads(side.read_text())
         if done.get("key") == key:
@@ -179,6 +174,48 @@ def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
            "per_particle": AF.evaluate(afexp, own, "per_particle"), "uniform": AF.evaluate(afexp, own, "uniform")}
     side.write_text(json.dumps(out, indent=2) + "\n")
     return out
+
+
+def authors_force_key(afexp: S.Experiment, own: Path) -> str:
+    """What authors_force.json in `own` is made from: its dataset, model and eval settings, the code."""
+    from sph.harness.keys import digest, files_digest
+
+    return digest({"data": (S.data_dir(own) / "generate.json").read_text(), "model": dataclasses.asdict(afexp.model),
+                   "eval": dataclasses.asdict(afexp.eval),
+                   "code": files_digest([HERE / f for f in ("authors_force.py", "model.py", "common.py", "evaluate.py")])})
+
+
+def stored_row(profile: str, exp: S.Experiment, results, run: Run):
+    """The row of a run that `--only` did not select, when it is finished and current (nothing is
+    trained, evaluated or generated here), else None: the table always shows every current run."""
+    from sitl import evaluate, train
+
+    own = study_dir(results) / "runs" / run.name
+    if run.group == "authors_force":
+        side = own / "authors_force.json"
+        try:
+            done = json.loads(side.read_text())
+            afexp = S.authors_force_experiment(run_experiment(profile, exp, run))
+            return {"run": run, "authors_force": done} if done.get("key") == authors_force_key(afexp, own) else None
+        except (OSError, ValueError):
+            return None
+    budget = own / "budget.json"
+    if run.group == "equal_cost" and not budget.exists():
+        return None
+    extra = json.loads(budget.read_text())["overrides"] if run.group == "equal_cost" else None
+    rexp = run_experiment(profile, exp, run, extra)
+    folder = run_results(results, exp, rexp, run)
+    rec = {"model": run.kind, "trained": False}
+    if run.kind != "solver":
+        rec = train.read_record(S.ckpt_dir(folder, run.kind) / "train.json") or {}
+        meta = (S.data_dir(folder) / "metadata.json").read_text()
+        if not rec.get("complete") or rec.get("fingerprint") != S.train_fingerprint(rexp, run.kind, meta):
+            return None
+    met = evaluate.current(rexp, folder, run.kind)
+    if met is None:
+        return None
+    return {"run": run, "exp": rexp, "folder": str(folder), "shared": folder == Path(results), "train": rec,
+            "metrics": met}
 
 
 def make_run(profile: str, exp: S.Experiment, results, run: Run) -> dict:
@@ -381,9 +418,12 @@ def run(profile: str, results, only=None) -> list:
     names = select("--only", only, [r.name for r in plan])
     rows = {}
     for r in plan:
-        if names is not None and r.name not in names:
-            continue
-        rows[r.name] = make_run(profile, exp, results, r)
+        if names is None or r.name in names:
+            rows[r.name] = make_run(profile, exp, results, r)
+        else:  # not run now; in the table when already finished and current
+            row = stored_row(profile, exp, results, r)
+            if row is not None:
+                rows[r.name] = row
     flat = table(exp, rows)
     out = study_dir(results)
     out.mkdir(parents=True, exist_ok=True)

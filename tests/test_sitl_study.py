@@ -123,3 +123,18 @@ def test_second_call_repeats_nothing(study):
     assert "from scratch" not in proc.stdout and "resuming" not in proc.stdout
     assert proc.stdout.count("up to date") >= 8, proc.stdout[-3000:]
     assert math.isfinite(wall)
+
+
+def test_only_runs_a_subset_and_the_table_keeps_every_current_run(study):
+    """Issue 23 class 1 for the study: `ONLY=` makes one run, and study.csv still lists every finished,
+    current run (not only the one just made)."""
+    results, rows, _, _ = study
+    proc = subprocess.run(["make", "sitl-study", "PROFILE=smoke", f"RESULTS={results}", "ONLY=solver_L1"], cwd=ROOT,
+                          env=_env(), capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "study: solver_L1" in proc.stdout and "study: gns " not in proc.stdout   # only the one run was made
+    with (results / "sitl_study" / "study.csv").open() as f:
+        again = {r["name"]: r for r in csv.DictReader(f)}
+    assert set(again) == set(rows)
+    for name, r in rows.items():
+        assert again[name]["mse20"] == r["mse20"], name
