@@ -46,6 +46,7 @@ import pandas as pd
 import sph
 from sph.harness.configtools import to_mapping
 from sph.harness.keys import digest
+from sph.diagnostics import SimulationError
 from sph.rollout import scan_rollout
 try:
     from . import scene as cube
@@ -128,7 +129,7 @@ def build(exp: S.Experiment) -> Problem:
 
 class Evaluator:
     """Calls the jitted functions with a neighbour list that has room: compiles ahead (timed apart)
-    for each list capacity, and on overflow re-allocates with more spare slots and redoes the call."""
+    for each list capacity, and on overflow re-allocates with twice the spare slots (+8) and redoes the call."""
 
     def __init__(self, prob: Problem, r_alloc):
         self.prob = prob
@@ -155,9 +156,11 @@ class Evaluator:
             if not bool(overflow):
                 return loss, final, grad
             self.n_reallocations += 1
-            self.extra += max(self.prob.exp.extra_capacity, 8)
+            # geometric growth: an optimizer step can pile particles up (a random start falling onto the
+            # floor), so the list may need many times its spare slots at once (+16 per try was not enough)
+            self.extra = 2 * self.extra + 8
             self.nbrs = self.prob.solver.neighbors.allocate(self.prob.full_positions(rf), extra_capacity=self.extra)
-        raise RuntimeError(f"neighbour list still overflows after {self.prob.exp.max_reallocations} re-allocations "
+        raise SimulationError(f"neighbour list still overflows after {self.prob.exp.max_reallocations} re-allocations "
                            f"(extra capacity {self.extra})")
 
     def rollout(self, rf):
