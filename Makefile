@@ -59,10 +59,11 @@ setup-lb: .venv-lb/.stamp
 	bash scripts/setup_lagrangebench.sh
 
 # the tests run in TEST_WORKERS processes (pytest-xdist), a test file per worker at a time: most of a
-# test's time is XLA compilation, which uses one core
+# test's time is XLA compilation, which uses one core (tests/conftest.py: the longest files first, and
+# JAX's persistent compilation cache shared by the test processes); the 25 slowest tests are listed
 TEST_WORKERS ?= 2
 test: $(VENV) .venv-lb/.stamp
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile tests
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=25 tests
 
 bench: $(VENV)
 	$(PY) bench/bench_tgv.py

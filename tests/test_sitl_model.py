@@ -6,6 +6,7 @@ graph equals LagrangeBench's own; evaluation windows come from every seed. FAILS
 .venv-lb is missing."""
 import json
 import os
+import shutil
 import subprocess
 import textwrap
 from pathlib import Path
@@ -256,25 +257,29 @@ def test_untrained_sitl_equals_solver_only_on_a_batch():
     assert out["live_diff"] > 0.05, out                            # normalised units: the corrector acts
 
 
-def _smoke_dataset() -> Path:
-    """The smoke dataset (make sitl-data PROFILE=smoke, ~30 s when missing)."""
-    path = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
-    if not (path / "generate.json").exists():
-        env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")
-        env.pop("VIRTUAL_ENV", None)
-        proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke"], cwd=ROOT, env=env, capture_output=True,
-                              text=True, timeout=900)
-        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    return path
+def _smoke_dataset(tmp_path) -> Path:
+    """The smoke dataset in a private folder: results/smoke's copied when there is one (another test
+    file may be writing it: make checks the copy against its recorded digests and regenerates a
+    damaged one), else generated (make sitl-data PROFILE=smoke, ~30 s)."""
+    results = tmp_path / "smoke"
+    shared = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    if (shared / "generate.json").exists():
+        shutil.copytree(shared, results / "sitl" / "data" / "2D_RPF")
+    env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")
+    env.pop("VIRTUAL_ENV", None)
+    proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return results / "sitl" / "data" / "2D_RPF"
 
 
-def test_corrector_edges_are_lagrangebench_graph():
+def test_corrector_edges_are_lagrangebench_graph(tmp_path):
     """The corrector's edges at its input frame are exactly LagrangeBench's graph there (its own
     neighbour search, case.allocate, on the same positions): pairs closer than the connectivity
     radius, self edges included, no skin edges although the Verlet list behind them holds more
     pairs. Two training frames of the smoke data and a jittered lattice with many pairs near the
     radius."""
-    out = _run(_EDGES, "float32", _smoke_dataset())
+    out = _run(_EDGES, "float32", _smoke_dataset(tmp_path))
     for name, o in out.items():
         assert not o["overflow"], (name, o)
         assert o["equal"] and o["only_lb"] == o["only_ours"] == 0, (name, o)
