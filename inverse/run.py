@@ -153,19 +153,29 @@ class Evaluator:
         rf, target = jnp.asarray(rf), jnp.asarray(target)
         for _ in range(self.prob.exp.max_reallocations + 1):
             (loss, (overflow, final)), grad = self._compiled(rf, target)(rf, target, self.nbrs)
-            if not bool(overflow):
+            if not bool(overflow) or not bool(jnp.isfinite(loss)):
+                # a non-finite rollout overflows any list (NaN positions fill no cell): the caller
+                # records the optimization as diverged instead of re-allocating for ever
                 return loss, final, grad
             self.n_reallocations += 1
             # geometric growth: an optimizer step can pile particles up (a random start falling onto the
             # floor), so the list may need many times its spare slots at once (+16 per try was not enough)
             self.extra = 2 * self.extra + 8
             self.nbrs = self.prob.solver.neighbors.allocate(self.prob.full_positions(rf), extra_capacity=self.extra)
-        raise SimulationError(f"neighbour list still overflows after {self.prob.exp.max_reallocations} re-allocations "
-                           f"(extra capacity {self.extra})")
+        raise SimulationError(f"neighbour list still overflows after {self.prob.exp.max_reallocations} re-allocations, "
+                              f"the rollout finite (min. final spacing {_min_spacing(final):.3g}) "
+                              f"(extra capacity {self.extra})")
 
     def rollout(self, rf):
         """Final fluid positions of the rollout from `rf`."""
         return self.value_and_grad(rf, jnp.zeros_like(jnp.asarray(rf)))[1]
+
+
+def _min_spacing(r) -> float:
+    """Smallest distance between two of the positions `r` (N, dim)."""
+    r = np.asarray(r)
+    d = np.linalg.norm(r[:, None] - r[None], axis=-1) + np.diag(np.full(len(r), np.inf))
+    return float(d.min())
 
 
 def make_optimizer(opt: S.Optimizer) -> optax.GradientTransformation:
