@@ -42,7 +42,7 @@ def _find(snapshot: Path, rel: str, fallback: bool = False) -> Path:
     for base in (snapshot, snapshot.parent / FALLBACK) if fallback else (snapshot,):
         if (base / rel).exists():
             return base / rel
-    raise SourceMissing(f"{snapshot / rel}: not in the snapshot")
+    raise SourceMissing(f"{rel} is not in the {snapshot.name} snapshot")
 
 
 def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
@@ -106,9 +106,7 @@ def table1(snapshot: Path) -> list:
 
 
 def atlas_table(snapshot: Path, profile: str) -> list:
-    runs = snapshot / "accuracy" / "runs.csv"
-    if not runs.exists():
-        raise SourceMissing(f"{runs}: not in the snapshot")
+    runs = _find(snapshot, "accuracy/runs.csv")
     lines = ["| error you accept | cheapest setting that reaches it | wall time of the run |", "|---|---|---|"]
     for r in atlas.cheapest(runs, profile):
         if r.run is None:
