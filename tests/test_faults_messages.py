@@ -3,6 +3,7 @@ for, one line and an exit code for every error, the keys that disagree named wit
 first, names that stay inside their folder, memory refused before anything is built, set-aside copies
 bounded. Mostly in-process; smoke sizes where a solver is needed.
 """
+import json
 import shutil
 import subprocess
 import sys
@@ -281,3 +282,65 @@ def test_damaged_checkpoint_is_set_aside_and_the_run_redone(tmp_path, capsys):
     assert out.status == "run" and f"{sp.traj}: damaged checkpoint" in text and "kept as traj.h5.stale-0" in text
     assert runs.stored_state(sp) == "current" and (sp.folder / "traj.h5.stale-0").exists()
     _ = tgv  # the case module the scene comes from
+
+
+# -- class 3: damaged SitL files (the make-level cases are in test_sitl_pipeline.py / test_sitl_cost.py)
+def _fake_checkpoint(folder: Path, step: int = 5) -> None:
+    """A checkpoint folder as LagrangeBench's save_haiku writes it: tree pickles, their leaves one
+    after another in one .npy file, the optimizer state, the step."""
+    import pickle
+    folder.mkdir(parents=True)
+    for kind, tree in (("params", {"w": np.ones((3, 4)), "b": np.zeros(4)}), ("state", {})):
+        (folder / f"{kind}_tree.pkl").write_bytes(pickle.dumps({k: 0 for k in tree}))
+        with (folder / f"{kind}_array.npy").open("wb") as f:
+            for v in tree.values():
+                np.save(f, v)
+    (folder / "opt_state.pkl").write_bytes(pickle.dumps({"count": step}))
+    (folder / "metadata_ckp.json").write_text(json.dumps({"step": step, "loss": 1.0}))
+
+
+def test_a_truncated_sitl_checkpoint_is_named_and_its_folder_set_aside(tmp_path, capsys):
+    from sitl import integrity
+
+    ckp = tmp_path / "ckp" / "gns"
+    _fake_checkpoint(ckp / "best")
+    assert integrity.unreadable_checkpoint(ckp / "best") is None
+    recorded = integrity.digests(ckp, ["best/params_array.npy", "best/metadata_ckp.json"])
+    arr = ckp / "best" / "params_array.npy"
+    arr.write_bytes(arr.read_bytes()[:100])
+    assert integrity.damaged(ckp, recorded) == (arr, "changed since it was written (truncated?)")
+    path, why = integrity.unreadable_checkpoint(ckp / "best")
+    assert path == arr and why.startswith("unreadable (")
+    integrity.set_aside_damaged(path, why, then="training gns again", whole=ckp)
+    line = capsys.readouterr().out.strip()
+    assert "\n" not in line and str(arr) in line and "kept as gns.stale-0, training gns again" in line
+    assert not ckp.exists() and (tmp_path / "ckp" / "gns.stale-0" / "best" / "params_array.npy").exists()
+    (ckp / "best").mkdir(parents=True)                         # the next set-aside folders stay bounded
+    for _ in range(runs.KEEP_STALE + 2):
+        integrity.set_aside_damaged(ckp / "x", "test", then="again", whole=ckp)
+        ckp.mkdir()
+    assert len(list((tmp_path / "ckp").glob("gns.stale-*"))) == runs.KEEP_STALE
+
+
+def test_a_truncated_sitl_split_is_one_line_naming_it(tmp_path):
+    """generate.ready (what train / evaluate call) on a split that differs from the digest
+    generate.json recorded: OutputError (one line, exit 4 through main_guard) naming the file and
+    what repairs it."""
+    from sitl import generate
+    from sitl import integrity
+    from sitl import settings as S
+
+    exp = S.load("smoke")
+    path = S.data_dir(tmp_path)
+    path.mkdir(parents=True)
+    for name in generate.FILES:
+        (path / name).write_bytes(b"x" * 1000)
+    (path / "generate.json").write_text(json.dumps({
+        "config": S.data_config_digest(exp), "fingerprint": S.data_fingerprint(exp),
+        "files": integrity.digests(path, generate.FILES)}))
+    (path / "test.h5").write_bytes(b"x" * 500)
+    with pytest.raises(io.OutputError) as e:
+        generate.ready(exp, tmp_path)
+    msg = str(e.value)
+    assert msg.startswith(f"{path / 'test.h5'}: damaged (changed since it was written") and "make sitl-data" in msg
+    assert "\n" not in msg
