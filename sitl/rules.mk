@@ -30,9 +30,10 @@ $(SITL_DATA): $(SITL)/config.yaml $(SITL)/settings.py $(SITL)/generate.py $(SITL
 	$(DELIVER) $(SITL_PY) $(SITL)/generate.py --profile $(PROFILE) --results $(RESULTS) --no-progress
 
 # train (resumes from its checkpoint; a finished training is reused while its checkpoint is intact),
-# then evaluate (reused while its metrics and rollouts are intact and current)
+# then evaluate (reused while its metrics and rollouts are intact and current). config.yaml is an
+# input: a changed model / train / eval key reaches train.py and evaluate.py, whose fingerprints decide
 $(SITL_OUT)/metrics/%.json: OUTS = $@
-$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py $(SITL)/stats.py $(SITL)/integrity.py FORCE | $(SITL_VENV) $(VENV)
+$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/config.yaml $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py $(SITL)/stats.py $(SITL)/integrity.py FORCE | $(SITL_VENV) $(VENV)
 	$(DELIVER) sh -c '$(SITL_ENV) $(SITL_PY) $(SITL)/train.py --profile $(PROFILE) --results $(RESULTS) --model $* && \
 	  $(SITL_ENV) $(SITL_PY) $(SITL)/evaluate.py --profile $(PROFILE) --results $(RESULTS) --model $*'
 
