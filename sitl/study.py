@@ -185,6 +185,12 @@ def authors_force_key(afexp: S.Experiment, own: Path) -> str:
                    "code": files_digest([HERE / f for f in ("authors_force.py", "model.py", "common.py", "evaluate.py")])})
 
 
+def locate(profile: str, exp: S.Experiment, results, run: Run, extra: dict = None):
+    """(the run's experiment, its results folder); `extra`: the equal-cost run's step budget."""
+    rexp = run_experiment(profile, exp, run, extra)
+    return rexp, run_results(results, exp, rexp, run)
+
+
 def stored_row(profile: str, exp: S.Experiment, results, run: Run):
     """The row of a run that `--only` did not select, when it is finished and current (nothing is
     trained, evaluated or generated here), else None: the table always shows every current run."""
@@ -202,9 +208,8 @@ def stored_row(profile: str, exp: S.Experiment, results, run: Run):
     budget = own / "budget.json"
     if run.group == "equal_cost" and not budget.exists():
         return None
-    extra = json.loads(budget.read_text())["overrides"] if run.group == "equal_cost" else None
-    rexp = run_experiment(profile, exp, run, extra)
-    folder = run_results(results, exp, rexp, run)
+    rexp, folder = locate(profile, exp, results, run,
+                          json.loads(budget.read_text())["overrides"] if run.group == "equal_cost" else None)
     rec = {"model": run.kind, "trained": False}
     if run.kind != "solver":
         rec = train.read_record(S.ckpt_dir(folder, run.kind) / "train.json") or {}
@@ -224,9 +229,8 @@ def make_run(profile: str, exp: S.Experiment, results, run: Run) -> dict:
 
     if run.group == "authors_force":
         return {"run": run, "authors_force": authors_force(profile, exp, results, run)}
-    extra = equal_cost_budget(profile, exp, results)["overrides"] if run.group == "equal_cost" else None
-    rexp = run_experiment(profile, exp, run, extra)
-    folder = run_results(results, exp, rexp, run)
+    rexp, folder = locate(profile, exp, results, run,
+                          equal_cost_budget(profile, exp, results)["overrides"] if run.group == "equal_cost" else None)
     shared = folder == Path(results)
     print(f"study: {run.name} ({run.label}) in {folder}", flush=True)
     rec = train.train(rexp, folder, run.kind)
