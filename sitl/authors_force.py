@@ -7,7 +7,9 @@ as g = (+g, 0) for every particle (the upper half, -g in the data, pushed the wr
 the authors' code picked depended on one particle's position). This script evaluates
 our "solver only" module (sitl/model.py, correction off) exactly as sitl/evaluate.py does, on the
 same test windows with LagrangeBench's `infer`, once with the data's per-particle force and once with
-that uniform force, so the two Table 1 columns can be put side by side.
+that uniform force, so the two Table 1 columns can be put side by side. MSE_5, MSE_20 and MSE_Ekin
+only: the question is the paper's 7.9e-6 / 0.13, and LagrangeBench's Sinkhorn metric at the
+paper's 3200 particles spent over 20 min compiling one `cond` on this CPU without finishing.
 
 Writes results/<profile>/sitl/metrics/solver_authors_force.json (never read by Table 1's rules).
 
@@ -62,11 +64,13 @@ def evaluate(exp: S.Experiment, results, kind: str) -> dict:
     n_trajs = C.n_windows(exp, data_test)
     metrics = infer(model, case, data_test, params=params, state=state,
                     cfg_eval_infer={"n_trajs": n_trajs, "metrics_stride": ev.metrics_stride, "batch_size": ev.batch_size,
-                                    "metrics": ["mse", "e_kin", "sinkhorn"], "out_type": "none", "n_extrap_steps": 0},
+                                    "metrics": ["mse", "e_kin"], "out_type": "none", "n_extrap_steps": 0},
                     n_rollout_steps=ev.n_rollout_steps, seed=exp.train.seed)
     avg = averaged_metrics(metrics)
     out = summary(per_window(metrics), ev.bootstrap, [data_test.seed_of(i) for i in range(n_trajs)])
     for k, v in KEYS.items():  # the per-window values average to LagrangeBench's own numbers
+        if k not in out:
+            continue
         assert not np.isfinite(avg[v]) or np.isclose(out[k], avg[v], rtol=1e-5), (k, out[k], avg[v])
     return out
 
@@ -78,8 +82,8 @@ def main(args):
     dest.parent.mkdir(parents=True, exist_ok=True)
     dest.write_text(json.dumps(out, indent=2) + "\n")
     for k, v in out.items():
-        print(f"solver only, {k} force: MSE_5 {v['mse5']:.3g}, MSE_20 {v['mse20']:.3g}, MSE_Ekin {v['e_kin']:.3g}, "
-              f"Sinkhorn {v['sinkhorn']:.3g} over {v['n_rollouts']} rollouts", flush=True)
+        print(f"solver only, {k} force: MSE_5 {v['mse5']:.3g}, MSE_20 {v['mse20']:.3g}, MSE_Ekin {v['e_kin']:.3g} "
+              f"over {v['n_rollouts']} rollouts", flush=True)
     return out
 
 

@@ -330,11 +330,11 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
     af = [r for r in flat if r["group"] == "authors_force"]
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",
-                  "| force | MSE_5 | MSE_20 | MSE_Ekin | Sinkhorn |", "|---|---|---|---|---|"]
+                  "| force | MSE_5 | MSE_20 | MSE_Ekin |", "|---|---|---|---|"]
         lines += [f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}] | "
-                  f"{_f(r['e_kin'])} | {_f(r['sinkhorn'])} |" for r in af]
+                  f"{_f(r['e_kin'])} |" for r in af]
         lines.append("| paper's solver only (Table 1) | " + " | ".join(_f(PAPER_SOLVER[k]) for k in
-                                                                      ("mse5", "mse20", "e_kin", "sinkhorn")) + " |")
+                                                                      ("mse5", "mse20", "e_kin")) + " |")
     return "\n".join(lines) + "\n"
 
 
