@@ -11,8 +11,8 @@ Tables (TABLES): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table
 `atlas` (the cheapest setting per error level, accuracy/runs.csv) and `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml). Only marked tables are touched;
 an unknown marker or a missing snapshot is an error; a table whose target is not in the snapshot
-yet says so (no number). Table 1 is taken from the sibling `cpu` snapshot when the paper one has
-none (labelled). --check changes nothing and exits 1 when
+yet says so (no number). Table 1 and Fig. 3 are taken from the sibling `cpu` snapshot when the
+paper one has none (labelled); Table 1 shows each mean with its interval and the paired comparisons. --check changes nothing and exits 1 when
 the README differs from what the snapshot gives (tests/test_report.py)."""
 import argparse
 import difflib
@@ -27,6 +27,7 @@ from . import atlas, paper
 
 MARKER = re.compile(r"(<!-- table:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.S)
 METHODS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
+NAMES = {"solver": "solver only", "gns": "GNS", "sitl": "SitL"}
 
 
 class SourceMissing(FileNotFoundError):
@@ -81,17 +82,22 @@ def table1(snapshot: Path) -> list:
         [f"_Profile `{src.parents[1].name}` ({src.parents[1].name}/table1/table1.csv of the snapshot): the paper "
          "profile needs a GPU._", ""]
     models = [m for m in ("solver", "gns", "sitl") if f"{m}_ours" in t]
-    names = {"solver": "solver only", "gns": "GNS", "sitl": "SitL"}
-    lines = note + ["| metric | " + " | ".join(f"{names[m]} (ours / paper)" for m in models) + " |",
+    spread = all(f"{m}_lo" in t and f"{m}_hi" in t for m in models)
+    ours_head = "ours [95 % interval] / paper" if spread else "ours / paper"
+    lines = note + ["| metric | " + " | ".join(f"{NAMES[m]} ({ours_head})" for m in models) + " |",
                     "|---|" + "---|" * len(models)]
     for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
         if metric not in t.index:
             continue
         ours = {m: pd.to_numeric(t.loc[metric, f"{m}_ours"], errors="coerce") for m in models}
         best = min((v for v in ours.values() if pd.notna(v)), default=None)
-        cells = [(f"**{sci(ours[m])}**" if ours[m] == best else sci(ours[m])) + f" / {sci(t.loc[metric, f'{m}_paper'])}"
-                 for m in models]
-        lines.append(f"| {metric} | " + " | ".join(cells) + " |")
+
+        def cell(m):
+            v = f"**{sci(ours[m])}**" if ours[m] == best else sci(ours[m])
+            if spread and pd.notna(t.loc[metric, f"{m}_lo"]):
+                v += f" [{sci(t.loc[metric, f'{m}_lo'])}, {sci(t.loc[metric, f'{m}_hi'])}]"
+            return f"{v} / {sci(t.loc[metric, f'{m}_paper'])}"
+        lines.append(f"| {metric} | " + " | ".join(cell(m) for m in models) + " |")
     if "inference s / coarse step" in t.index:
         ms = [1e3 * float(t.loc["inference s / coarse step", f"{m}_ours"]) for m in models]
         lines.append("| ms per coarse step | " + " | ".join(f"{v:.2g}" if v < 100 else f"{v:.0f}" for v in ms) + " |")
@@ -102,6 +108,28 @@ def table1(snapshot: Path) -> list:
             ok = pd.notna(pd.to_numeric(steps, errors="coerce")) and m != "solver"
             cells.append(f"{int(float(steps))} steps, {float(wall):.0f} s" if ok else "")
         lines.append("| training | " + " | ".join(cells) + " |")
+    if spread and "test windows" in t.index:
+        n = pd.to_numeric(t.loc["test windows", f"{models[0]}_ours"], errors="coerce")
+        if pd.notna(n):
+            lines += ["", f"Ours: the mean over {int(n)} test windows of every seed, with its 95 % bootstrap interval "
+                          "over the windows."]
+    return lines + table1_comparisons(src.with_name("comparisons.csv"))
+
+
+def table1_comparisons(src: Path) -> list:
+    """The paired comparisons beside table1.csv (sitl/table1.py's comparisons.csv: ratio of means on
+    the same test windows with its paired bootstrap interval), MSE_20 and MSE_Ekin; [] when absent."""
+    if not src.exists():
+        return []
+    c = pd.read_csv(src)
+    c = c[c["metric"].isin(["MSE_20", "MSE_Ekin"])]
+    if c.empty:
+        return []
+    lines = ["", "Paired on the same test windows (ratio of the means, 95 % paired bootstrap interval):", "",
+             "| a / b | metric | ratio | a is |", "|---|---|---|---|"]
+    for _, r in c.iterrows():
+        lines.append(f"| {NAMES[r['a']]} / {NAMES[r['b']]} | {r['metric']} | {float(r['ratio']):.3g} "
+                     f"[{float(r['lo']):.3g}, {float(r['hi']):.3g}] | {r['verdict']} |")
     return lines
 
 
@@ -125,11 +153,18 @@ def figures(snapshot: Path, readme: Path) -> list:
     lines = []
     for name, entry in paper.targets().items():
         cap = entry.get("readme_caption")
-        figs = [f for f in entry.get("figures") or [] if (snapshot / f).exists()]
+        figs = []
+        for f in entry.get("figures") or []:
+            try:
+                figs.append(_find(snapshot, f, fallback=bool(entry.get("fallback"))))
+            except SourceMissing:
+                pass
         if not cap or not figs:
             continue
-        link = os.path.relpath(snapshot / figs[0], readme.parent)
-        lines += [f"**{entry['paper']['where']}** ({name}): {cap}", "", f"![{name}]({link})", ""]
+        src = figs[0]
+        prof = "" if src.is_relative_to(snapshot) else f", profile `{src.relative_to(snapshot.parent).parts[0]}`"
+        link = os.path.relpath(src, readme.parent)
+        lines += [f"**{entry['paper']['where']}** ({name}{prof}): {cap}", "", f"![{name}]({link})", ""]
     if not lines:
         raise SourceMissing(f"{snapshot}: no figure of the snapshot has a readme_caption")
     return lines[:-1]

@@ -243,14 +243,23 @@ def test_a_table_whose_target_is_not_in_the_snapshot_says_so_and_table1_falls_ba
     snap, cpu = tmp_path / "paper", tmp_path / "cpu"
     shutil.copytree(FIXTURES / "snapshot" / "paper" / "fig5", snap / "fig5")
     shutil.copytree(FIXTURES / "snapshot" / "paper" / "table1", cpu / "table1")
+    (cpu / "fig3").mkdir()
+    shutil.copyfile(FIXTURES / "snapshot" / "paper" / "fig5" / "fig5.png", cpu / "fig3" / "fig3.png")
     text = ("<!-- table:atlas -->\n| 1 % | hand-typed | 3 s |\n<!-- /table:atlas -->\n"
-            "<!-- table:table1 -->\n<!-- /table:table1 -->\n")
+            "<!-- table:table1 -->\n<!-- /table:table1 -->\n<!-- table:figures -->\n<!-- /table:figures -->\n")
     new = readme_tables.regenerate(text, snap, tmp_path / "README.md")
     atlas_body = new.split("<!-- /table:atlas -->")[0]
     assert "Not in this snapshot yet" in atlas_body and "hand-typed" not in atlas_body
     assert not re.search(r"\d+(\.\d+)? ?%", atlas_body.replace("1 %", ""))   # no number without a record
     t1 = new.split("<!-- table:table1 -->")[1]
     assert "Profile `cpu`" in t1 and "| MSE_20 |" in t1
+    # every Table 1 number with its interval, and the paired comparisons (the fixture's csv files)
+    assert "| MSE_20 | **2.0e-7** [1.8e-7, 2.2e-7] / 7.9e-6 |" in t1
+    assert "| SitL / GNS | MSE_20 | 0.087 [0.074, 0.101] | lower |" in t1
+    # Fig. 3 (fallback cpu, like Table 1) is embedded from the cpu snapshot, labelled; Fig. 5 from the paper's
+    figs = new.split("<!-- table:figures -->")[1]
+    assert "(fig3, profile `cpu`)" in figs and "](cpu/fig3/fig3.png)" in figs, figs
+    assert "(fig5)" in figs and "](paper/fig5/fig5.png)" in figs, figs
 
 
 def test_the_readme_matches_its_snapshot():
