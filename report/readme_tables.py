@@ -7,9 +7,10 @@ records (docs/results/<profile>/), between marker comments:
 
     python -m report.readme_tables --snapshot docs/results/paper --readme README.md [--check]
 
-Tables (TABLES): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
-`atlas` (the cheapest setting per error level, accuracy/runs.csv) and `figures` (the key figures
-with one sentence each, `readme_caption` in docs/paper_values.yaml). Only marked tables are touched;
+Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
+`atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
+with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
+(Figs. 6-8, 10: report/readme_walls.py) and `gradients` (Figs. 1-2: report/readme_gradients.py). Only marked tables are touched;
 an unknown marker or a missing snapshot is an error; a table whose target is not in the snapshot
 yet says so (no number). Table 1 and Fig. 3 are taken from the sibling `cpu` snapshot when the
 paper one has none (labelled); Table 1 shows each mean with its interval and the paired comparisons. --check changes nothing and exits 1 when
@@ -171,8 +172,12 @@ def figures(snapshot: Path, readme: Path) -> list:
 
 
 def tables(snapshot: Path, readme: Path, profile: str) -> dict:
+    from . import readme_gradients as G, readme_walls as W  # they build on this module's helpers
+
     return {"tgv2d": lambda: tgv2d(snapshot), "table1": lambda: table1(snapshot),
-            "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme)}
+            "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme),
+            "cavity": lambda: W.cavity(snapshot), "dambreak": lambda: W.dambreak(snapshot),
+            "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot)}
 
 
 def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> str:

@@ -262,6 +262,44 @@ def test_a_table_whose_target_is_not_in_the_snapshot_says_so_and_table1_falls_ba
     assert "(fig5)" in figs and "](paper/fig5/fig5.png)" in figs, figs
 
 
+def test_experiment_tables_show_the_records_cells(tmp_path):
+    """The cavity, dam-break, heat and gradient tables (report/readme_walls.py, readme_gradients.py)
+    show the snapshot's own cells, read here independently with the csv module; a figure missing
+    from the snapshot is named, never filled in."""
+    import csv
+    import shutil
+
+    snap = FIXTURES / "snapshot" / "paper"
+    text = "".join(f"<!-- table:{n} -->\n<!-- /table:{n} -->\n" for n in ("cavity", "dambreak", "heat", "gradients"))
+    new = readme_tables.regenerate(text, snap, tmp_path / "README.md")
+    body = {n: new.split(f"<!-- table:{n} -->")[1].split(f"<!-- /table:{n} -->")[0]
+            for n in ("cavity", "dambreak", "heat", "gradients")}
+
+    def rows(rel):
+        with (snap / rel).open() as f:
+            return list(csv.DictReader(f))
+
+    names = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
+    for r in rows("fig6/metrics.csv"):
+        assert f"| fig6 | {names[r['method']]} | {float(r['dx']):g} | {float(r['u_rms']):.4f} / {float(r['v_rms']):.4f} |" \
+            in body["cavity"]
+    assert "fig7: not in this snapshot yet" in body["cavity"]
+    tall = next(r for r in rows("fig8/metrics.csv") if r["column"] == "tall")
+    assert f"| {float(tall['p_arrival_t']):.4g} | {float(tall['ref_p_arrival_t']):.4g} (Buchner) |" in body["dambreak"]
+    square = next(r for r in rows("fig8/metrics.csv") if r["column"] == "square")
+    assert f"{100 * float(square['front_relerr_max']):.3g} %" in body["dambreak"]
+    for r in rows("heat_validation/metrics.csv"):
+        assert f"{100 * abs(float(r['decay_rate_relerr'])):.2g} %" in body["heat"]
+    tgv64 = next(r for r in rows("fig1/metrics.csv") if r["case"] == "tgv" and r["dtype"] == "float64")
+    m, e = f"{float(tgv64['rel_l2']):.1e}".split("e")
+    assert f"| {m}e{int(e)} |" in body["gradients"]
+    # without fig1 / fig2 the gradient table is a placeholder, with no number
+    part = tmp_path / "part"
+    shutil.copytree(snap / "fig6", part / "fig6")
+    gone = readme_tables.regenerate("<!-- table:gradients -->\n<!-- /table:gradients -->\n", part, tmp_path / "R.md")
+    assert "Not in this snapshot yet" in gone and not re.search(r"\de-\d", gone)
+
+
 def test_the_readme_matches_its_snapshot():
     """The README's marked tables are what the committed snapshot gives. Until a snapshot is
     committed, the markers must name tables the generator knows (the fixture test above checks the

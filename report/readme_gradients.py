@@ -1,0 +1,52 @@
+"""README tables of the gradient experiments (Figs. 1-2), generated from the snapshot's metrics
+tables by `make readme-tables` (report/readme_tables.py registers it):
+
+    gradients  Fig. 1: AD against central finite differences, relative L2 error per case and dtype
+               (fig1/metrics.csv); Fig. 2: final-position RMSE of the inverse problem from the
+               paper's displaced start per optimizer, beside the paper's (fig2/summary.csv)
+
+Every number is a cell of those files; nothing is typed by hand."""
+from pathlib import Path
+
+import pandas as pd
+
+from .readme_tables import SourceMissing, _find, sci
+
+CASES = {"tgv": "Taylor-Green vortex", "ldc": "lid-driven cavity (moving lid, no-slip walls)"}
+OPTIMIZERS = {"gd": "GD on the MSE", "adam": "Adam", "gd_rmse": "GD on the RMSE (the paper's)"}
+
+
+def gradients(snapshot: Path) -> list:
+    lines = []
+    try:
+        g = pd.read_csv(_find(snapshot, "fig1/metrics.csv"))
+    except SourceMissing:
+        g = None
+    if g is not None:
+        lines += ["| Fig. 1: AD against central FD | float64 rel. L2 | float32 rel. L2 | AD s per gradient (float64) |",
+                  "|---|---|---|---|"]
+        for case, t in g.groupby("case", sort=False):
+            by = t.set_index("dtype")
+            cell = {d: sci(by.loc[d, "rel_l2"]) if d in by.index else "-" for d in ("float64", "float32")}
+            ad_s = f"{float(by.loc['float64', 'ad_s']):.2g}" if "float64" in by.index else "-"
+            lines.append(f"| {CASES.get(case, case)}, {int(t['n_fluid'].iloc[0])} fluid particles | {cell['float64']} | "
+                         f"{cell['float32']} | {ad_s} |")
+    try:
+        inv = pd.read_csv(_find(snapshot, "fig2/summary.csv"))
+    except SourceMissing:
+        inv = None
+    if inv is not None:
+        d = inv[inv["start"] == "displaced"]
+        opts = [o for o in OPTIMIZERS if o in set(d["optimizer"])]
+        lines += ([""] if lines else []) + [
+            "| Fig. 2: final-position RMSE, displaced start, "
+            f"{int(d['iterations'].iloc[0])} updates | " + " | ".join(OPTIMIZERS[o] for o in opts) + " | paper | s per update |",
+            "|---|" + "---|" * (len(opts) + 2)]
+        for case, t in d.groupby("case", sort=True):
+            by = t.set_index("optimizer")
+            cells = ["diverged" if bool(by.loc[o, "diverged"]) else sci(by.loc[o, "rmse_final"]) for o in opts]
+            lines.append(f"| case {case} | " + " | ".join(cells) + f" | {float(t['paper_rmse_final'].iloc[0]):g} | "
+                         f"{t['wall_s_per_iteration'].min():.2g}-{t['wall_s_per_iteration'].max():.2g} |")
+    if not lines:
+        raise SourceMissing("fig1/metrics.csv and fig2/summary.csv are not in the snapshot")
+    return lines
