@@ -39,6 +39,7 @@ from sitl import settings as S
 from sitl import stats
 from sph.harness.cli import profile_main, select
 from sph.harness.configtools import merge
+from sph.harness.lock import folder_lock
 
 HERE = Path(__file__).resolve().parent
 GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force")
@@ -423,14 +424,25 @@ def run(profile: str, results, only=None) -> list:
     rows = {}
     for r in plan:
         if names is None or r.name in names:
-            rows[r.name] = make_run(profile, exp, results, r)
-        else:  # not run now; in the table when already finished and current
+            # one process per run: `make sitl-study ONLY=a` and `ONLY=b` may run at once (a second
+            # process wanting the same run waits, then finds it done)
+            with folder_lock(study_dir(results) / "runs" / r.name):
+                rows[r.name] = make_run(profile, exp, results, r)
+    out = study_dir(results)
+    with folder_lock(out):  # the table of one process at a time, from every run finished by then
+        return write_outputs(profile, exp, results, plan, rows, out)
+
+
+def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: dict, out: Path) -> list:
+    """study.{csv,md,png,json} from `rows` (the runs made now) and the finished, current rows of the
+    others (made earlier, or by another process meanwhile): the table always shows every current run."""
+    for r in plan:
+        if r.name not in rows:
             row = stored_row(profile, exp, results, r)
             if row is not None:
                 rows[r.name] = row
+    rows = {r.name: rows[r.name] for r in plan if r.name in rows}  # the study's order
     flat = table(exp, rows)
-    out = study_dir(results)
-    out.mkdir(parents=True, exist_ok=True)
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_csv(flat, out / "study.csv")

@@ -138,3 +138,44 @@ def test_only_runs_a_subset_and_the_table_keeps_every_current_run(study):
     assert set(again) == set(rows)
     for name, r in rows.items():
         assert again[name]["mse20"] == r["mse20"], name
+
+
+def test_a_run_held_by_another_process_is_waited_for_and_not_made_twice(study):
+    """`make sitl-study ONLY=a` and `ONLY=b` may run at once: each run is made under a lock on its
+    folder (sph.harness.lock), so a second process wanting the same run waits for the first and then
+    finds it done; the table is written under the study folder's lock from every finished run."""
+    import threading
+
+    from sph.harness.lock import folder_lock
+
+    results, rows, _, _ = study
+    held, release = threading.Event(), threading.Event()
+
+    def hold():
+        with folder_lock(results / "sitl_study" / "runs" / "solver_L1", quiet=True):
+            held.set()
+            release.wait(60)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    held.wait(10)
+    proc = subprocess.Popen(["make", "sitl-study", "PROFILE=smoke", f"RESULTS={results}", "ONLY=solver_L1"], cwd=ROOT,
+                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout))
+    reader.start()
+    t0 = time.monotonic()
+    while not any("being written by" in ln for ln in lines) and proc.poll() is None and time.monotonic() - t0 < 600:
+        time.sleep(0.5)
+    waiting = proc.poll() is None   # it stopped at the lock, not made the run nor finished
+    release.set()
+    t.join()
+    proc.wait(timeout=600)
+    reader.join()
+    out = "".join(lines)
+    assert waiting and proc.returncode == 0, out[-3000:]
+    assert "being written by" in out and "released, continuing" in out, out[-3000:]
+    assert "up to date" in out and "from scratch" not in out
+    with (results / "sitl_study" / "study.csv").open() as f:
+        assert {r["name"] for r in csv.DictReader(f)} == set(rows)
+
