@@ -10,10 +10,11 @@ records (docs/results/<profile>/), between marker comments:
 Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
-(Figs. 6-8, 10: report/readme_walls.py) and `gradients` (Figs. 1-2: report/readme_gradients.py). Only marked tables are touched;
-an unknown marker or a missing snapshot is an error; a table whose target is not in the snapshot
-yet says so (no number). Table 1 and Fig. 3 are taken from the sibling `cpu` snapshot when the
-paper one has none (labelled); Table 1 shows each mean with its interval and the paired comparisons. --check changes nothing and exits 1 when
+(Figs. 6-8, 10: report/readme_walls.py) and `gradients` (Figs. 1-2: report/readme_gradients.py).
+Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
+target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
+sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
+interval and the paired comparisons. --check changes nothing and exits 1 when
 the README differs from what the snapshot gives (tests/test_report.py)."""
 import argparse
 import difflib
