@@ -10,7 +10,9 @@ records (docs/results/<profile>/), between marker comments:
 Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
-(Figs. 6-8, 10: report/readme_walls.py) and `gradients` (Figs. 1-2: report/readme_gradients.py).
+(Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
+`fig9` (report/readme_tgv3d.py) and `stability` (report/readme_stability.py); these modules build
+on this one's helpers.
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
 sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
@@ -54,6 +56,12 @@ def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
 
 def pct(v, digits: int = 3) -> str:
     return "-" if pd.isna(v) else f"{100 * float(v):.{digits}g} %"
+
+
+def duration(s) -> str:
+    """A wall time in seconds: '45 s', '12 min', '1.9 h'."""
+    s = float(s)
+    return f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.2g} h"
 
 
 def sci(v) -> str:
@@ -173,12 +181,14 @@ def figures(snapshot: Path, readme: Path) -> list:
 
 
 def tables(snapshot: Path, readme: Path, profile: str) -> dict:
-    from . import readme_gradients as G, readme_walls as W  # they build on this module's helpers
+    # imported here: these modules build on this one's helpers
+    from . import readme_gradients as G, readme_stability as St, readme_tgv3d as T3, readme_walls as W
 
     return {"tgv2d": lambda: tgv2d(snapshot), "table1": lambda: table1(snapshot),
             "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme),
             "cavity": lambda: W.cavity(snapshot), "dambreak": lambda: W.dambreak(snapshot),
-            "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot)}
+            "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot),
+            "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot)}
 
 
 def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> str:
@@ -233,4 +243,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run as the package's module, not __main__: the table modules import report.readme_tables, and
+    # its SourceMissing must be the class that `regenerate` catches
+    from report import readme_tables
+
+    sys.exit(readme_tables.main())

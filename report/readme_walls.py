@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, SourceMissing, _find
+from .readme_tables import METHODS, SourceMissing, _find, duration
 
 
 def _g(v, digits: int = 3) -> str:
@@ -22,11 +22,6 @@ def _g(v, digits: int = 3) -> str:
 
 def _pct(v, digits: int = 3) -> str:
     return "-" if v is None or pd.isna(v) else f"{100 * float(v):.{digits}g} %"
-
-
-def _wall(s) -> str:
-    s = float(s)
-    return f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min"
 
 
 def cavity(snapshot: Path) -> list:
@@ -46,7 +41,7 @@ def cavity(snapshot: Path) -> list:
         for _, r in t.iterrows():
             lines.append(f"| {fig} | {METHODS.get(r['method'], r['method'])} | {r['dx']:g} | "
                          f"{r['u_rms']:.4f} / {r['v_rms']:.4f} | {r['u_rms_fluid']:.4f} / {r['v_rms_fluid']:.4f} | "
-                         f"{_pct(r['density_error_max'], 2)} | {_wall(r['wall_s'])} | {_g(r['ms_per_step'])} |")
+                         f"{_pct(r['density_error_max'], 2)} | {duration(r['wall_s'])} | {_g(r['ms_per_step'])} |")
     missing = [f for f in ("fig6", "fig7") if f not in figs]
     if missing:
         lines += ["", f"_{', '.join(missing)}: not in this snapshot yet._"]
@@ -68,7 +63,7 @@ def dambreak(snapshot: Path) -> list:
                   f"{_pct(square['front_relerr_max'])} / {_pct(square['front_relerr_mean'])} | Martin & Moyce |",
                   f"| square column: residual height at the back wall, max \\|h - h_MM\\| / H | "
                   f"{_g(square['height_abserr_max'], 2)} | Martin & Moyce |"]
-    walls = ", ".join(f"{c} {_wall(r['wall_s'])} ({_g(r['ms_per_step'])} ms per step)" for c, r in t.iterrows())
+    walls = ", ".join(f"{c} {duration(r['wall_s'])} ({_g(r['ms_per_step'])} ms per step)" for c, r in t.iterrows())
     return lines + ["", f"Riemann SPH, dx {tall['dx']:g}, to t sqrt(g/H) = {tall['t_end']:.3g}; wall time: {walls}."]
 
 

@@ -260,6 +260,14 @@ def test_a_table_whose_target_is_not_in_the_snapshot_says_so_and_table1_falls_ba
     figs = new.split("<!-- table:figures -->")[1]
     assert "(fig3, profile `cpu`)" in figs and "](cpu/fig3/fig3.png)" in figs, figs
     assert "(fig5)" in figs and "](paper/fig5/fig5.png)" in figs, figs
+    # the same through `python -m report.readme_tables` (one module instance: a table module's
+    # missing source is the placeholder there too, not a traceback)
+    r = tmp_path / "README.md"
+    r.write_text("<!-- table:fig9 -->\n<!-- /table:fig9 -->\n<!-- table:cavity -->\n<!-- /table:cavity -->\n")
+    proc = subprocess.run([sys.executable, "-m", "report.readme_tables", "--snapshot", str(snap), "--readme", str(r)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert r.read_text().count("Not in this snapshot yet") == 2
 
 
 def test_experiment_tables_show_the_records_cells(tmp_path):
@@ -293,6 +301,15 @@ def test_experiment_tables_show_the_records_cells(tmp_path):
     tgv64 = next(r for r in rows("fig1/metrics.csv") if r["case"] == "tgv" and r["dtype"] == "float64")
     m, e = f"{float(tgv64['rel_l2']):.1e}".split("e")
     assert f"| {m}e{int(e)} |" in body["gradients"]
+    # Fig. 9 and the stability matrix
+    more = readme_tables.regenerate("<!-- table:fig9 -->\n<!-- /table:fig9 -->\n<!-- table:stability -->\n"
+                                    "<!-- /table:stability -->\n", snap, tmp_path / "README.md")
+    for r in rows("fig9/metrics.csv"):
+        assert f"| {r['n_side']}³ | {names[r['method']]} | {100 * float(r['e_kin_rms_rel']):.1f} % |" in more, more
+    st = rows("stability/stability.csv")
+    for r in st:
+        assert f"| {r['case']} | {r['method']} | {r['expected']} | {'pass' if r['passed'] == 'True' else 'fail'}" in more
+    assert f"{sum(r['as_expected'] == 'True' for r in st)} of {len(st)} cases ended as expected" in more
     # without fig1 / fig2 the gradient table is a placeholder, with no number
     part = tmp_path / "part"
     shutil.copytree(snap / "fig6", part / "fig6")

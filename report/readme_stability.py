@@ -1,0 +1,32 @@
+"""README table of the stability matrix (`make stability`), generated from the snapshot's
+stability/stability.csv by `make readme-tables` (report/readme_tables.py registers it): per hard
+case its expected outcome, the verdict, the density error, wall crossings and the energy check.
+Every number is a cell of that file."""
+from pathlib import Path
+
+import pandas as pd
+
+from .readme_tables import _find, duration
+
+
+def _bool(v) -> bool:
+    return str(v).strip().lower() in ("true", "1", "1.0", "yes")
+
+
+def _g(v, spec: str = ".2g") -> str:
+    return "-" if pd.isna(v) or str(v) == "" else format(float(v), spec)
+
+
+def stability(snapshot: Path) -> list:
+    t = pd.read_csv(_find(snapshot, "stability/stability.csv"))
+    lines = ["| case | method | expected | result | as expected | max abs(rho/rho0 - 1) | crossed a wall / left the box | "
+             "energy drift | wall |", "|---|---|---|---|---|---|---|---|---|"]
+    for _, r in t.iterrows():
+        result = "pass" if _bool(r["passed"]) else f"fail ({r['failed_checks']})"
+        crossed = "-" if pd.isna(r["n_crossed_wall"]) else f"{int(r['n_crossed_wall'])} / {int(r['n_left_domain'])}"
+        lines.append(f"| {r['case']} | {r['method']} | {r['expected']} | {result} | "
+                     f"{'yes' if _bool(r['as_expected']) else '**no**'} | {_g(r['density_error_max'])} | {crossed} | "
+                     f"{_g(r['energy_drift'])} | {duration(r['wall_s'])} |")
+    n_ok = sum(_bool(v) for v in t["as_expected"])
+    return lines + ["", f"{n_ok} of {len(t)} cases ended as expected (`stability/stability.md` of the snapshot has "
+                        "every column and each case's criterion)."]
