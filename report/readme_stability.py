@@ -7,10 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from .readme_tables import _find, duration
-
-
-def _bool(v) -> bool:
-    return str(v).strip().lower() in ("true", "1", "1.0", "yes")
+from .stability import _bool
 
 
 def _g(v, spec: str = ".2g") -> str:

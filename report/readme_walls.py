@@ -13,15 +13,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, SourceMissing, _find, duration
+from .readme_tables import METHODS, SourceMissing, _find, duration, pct
 
 
 def _g(v, digits: int = 3) -> str:
     return "-" if v is None or pd.isna(v) else f"{float(v):.{digits}g}"
-
-
-def _pct(v, digits: int = 3) -> str:
-    return "-" if v is None or pd.isna(v) else f"{100 * float(v):.{digits}g} %"
 
 
 def cavity(snapshot: Path) -> list:
@@ -41,7 +37,7 @@ def cavity(snapshot: Path) -> list:
         for _, r in t.iterrows():
             lines.append(f"| {fig} | {METHODS.get(r['method'], r['method'])} | {r['dx']:g} | "
                          f"{r['u_rms']:.4f} / {r['v_rms']:.4f} | {r['u_rms_fluid']:.4f} / {r['v_rms_fluid']:.4f} | "
-                         f"{_pct(r['density_error_max'], 2)} | {duration(r['wall_s'])} | {_g(r['ms_per_step'])} |")
+                         f"{pct(r['density_error_max'], 2)} | {duration(r['wall_s'])} | {_g(r['ms_per_step'])} |")
     missing = [f for f in ("fig6", "fig7") if f not in figs]
     if missing:
         lines += ["", f"_{', '.join(missing)}: not in this snapshot yet._"]
@@ -56,11 +52,11 @@ def dambreak(snapshot: Path) -> list:
              f"{_g(tall['ref_p_arrival_t'], 4)} (Buchner) |",
              f"| first pressure peak, p / (rho g H) (smoothed) | {_g(tall['p_peak_smooth'])} at "
              f"{_g(tall['p_peak_t_smooth'])} | {_g(tall['ref_p_peak'])} at {_g(tall['ref_p_peak_t'])} (Buchner) |",
-             f"| max density error / fluid particles that left the tank | {_pct(tall['density_error_max'], 2)} / "
+             f"| max density error / fluid particles that left the tank | {pct(tall['density_error_max'], 2)} / "
              f"{int(tall['n_left_tank'])} | - |"]
     if square is not None:
         lines += [f"| square column: surge front, max / mean \\|x / x_MM - 1\\| for t sqrt(g/H) <= 2.5 | "
-                  f"{_pct(square['front_relerr_max'])} / {_pct(square['front_relerr_mean'])} | Martin & Moyce |",
+                  f"{pct(square['front_relerr_max'])} / {pct(square['front_relerr_mean'])} | Martin & Moyce |",
                   f"| square column: residual height at the back wall, max \\|h - h_MM\\| / H | "
                   f"{_g(square['height_abserr_max'], 2)} | Martin & Moyce |"]
     walls = ", ".join(f"{c} {duration(r['wall_s'])} ({_g(r['ms_per_step'])} ms per step)" for c, r in t.iterrows())
@@ -72,14 +68,14 @@ def heat(snapshot: Path) -> list:
     lines = ["| heat operator: dx | " + " | ".join(f"{d:g}" for d in v["dx"]) + " |",
              "|---|" + "---|" * len(v),
              "| decay rate of a sine temperature against the exact one | "
-             + " | ".join(_pct(abs(e), 2) for e in v["decay_rate_relerr"]) + " |"]
+             + " | ".join(pct(abs(e), 2) for e in v["decay_rate_relerr"]) + " |"]
     try:
         c = pd.read_csv(_find(snapshot, "fig10/metrics.csv")).iloc[0]
     except SourceMissing:
         return lines + ["", "_fig10: not in this snapshot yet._"]
     return lines + ["", f"Heated channel (Fig. 10, dx {c['dx']:g}, to t = {c['t_end']:.3g}): fluid temperature within "
                         f"[{_g(c['T_fluid_min'])}, {_g(c['T_fluid_max'])}] (wall values [{_g(c['T_all_min'])}, "
-                        f"{_g(c['T_all_max'])}]), bulk velocity {_pct(abs(c['u_bulk_relerr_end']), 2)} from the laminar "
+                        f"{_g(c['T_all_max'])}]), bulk velocity {pct(abs(c['u_bulk_relerr_end']), 2)} from the laminar "
                         f"value, Nusselt number {_g(c['Nu_hot_end'])} at the heated segment, "
                         f"{_density(snapshot, c)}."]
 
@@ -89,6 +85,6 @@ def _density(snapshot: Path, c) -> str:
     try:
         e = pd.read_csv(_find(snapshot, "fig10/series.csv"))["density_error"]
     except (SourceMissing, KeyError):
-        return f"density error at most {_pct(c['density_error_max'], 2)}, {_pct(c['density_error_end'], 2)} at the end"
-    return (f"density error {_pct(e.iloc[0], 2)} in the starting lattice, at most {_pct(e.iloc[1:].max(), 2)} "
-            f"after it, {_pct(c['density_error_end'], 2)} at the end")
+        return f"density error at most {pct(c['density_error_max'], 2)}, {pct(c['density_error_end'], 2)} at the end"
+    return (f"density error {pct(e.iloc[0], 2)} in the starting lattice, at most {pct(e.iloc[1:].max(), 2)} "
+            f"after it, {pct(c['density_error_end'], 2)} at the end")
