@@ -244,8 +244,8 @@ class Study:
     substeps         coarse SitL (and the solver alone) at L substeps per frame, M = write_every / L,
                      where the solver alone fails; trained at the paper's noise
     train_seeds      further training seeds of SitL (paper settings): the spread between trainings
-    gns_equal_cost   GNS trained for as many steps as fit in SitL's training wall time (its own
-                     measured s / step), the comparison at equal training cost
+    gns_equal_cost   GNS trained for as many steps as cost what SitL's training costs (both timed side
+                     by side, sitl/train_cost.py), the comparison at equal training cost
     authors_force_data  keys over `data` for the dataset of the authors' force bug (their uniform
                      force against the per-particle one, solver only, no training): the paper's
                      resolution and frame interval on cpu / paper; {} = the profile's own dataset

@@ -8,8 +8,9 @@ cached and resumable like Table 1's, gathered into one table and one figure:
   seed           SitL at the paper's settings with another training seed: spread between trainings
   coarse         where the solver alone fails: the solver and SitL at L = study.substeps substeps per
                  frame (M = write_every / L), SitL at the paper's noise
-  equal_cost     GNS trained for as many steps as fit in the reference SitL's training wall time at
-                 GNS's own measured seconds per step (both include their validation rollouts)
+  equal_cost     GNS trained for as many steps as cost what the reference SitL's training costs, both
+                 models' seconds per step and per validation window timed side by side
+                 (sitl/train_cost.py), validations included
   authors_force  the solver alone (L = model.substeps) with the authors' uniform force beside the
                  per-particle one, at study.authors_force_data's resolution and frame interval (cpu:
                  the paper's dx 0.025, frames every 0.01), no training
@@ -76,7 +77,7 @@ def runs(exp: S.Experiment) -> list:
         out.append(Run(f"sitl_L{n}", "sitl", "coarse", f"SitL, L={n} (M={_g(w / n)}), noise {_g(t.sitl_noise_std)}",
                        sub))
     if st.gns_equal_cost:
-        out.append(Run("gns_equal_cost", "gns", "equal_cost", "GNS at SitL's training wall time"))
+        out.append(Run("gns_equal_cost", "gns", "equal_cost", "GNS at SitL's training cost"))
     for n in st.noise:
         if n != t.sitl_noise_std:
             out.append(Run(f"sitl_noise{_g(n)}", "sitl", "noise", f"SitL, L={l0}, noise {_g(n)}",
@@ -119,28 +120,40 @@ def run_results(results, profile_exp: S.Experiment, run_exp: S.Experiment, run: 
 
 
 def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
-    """GNS's step budget at the reference SitL's training wall time, from the two reference runs'
-    training records (measured once, then kept in budget.json so that the run's key is stable)."""
+    """GNS's step budget at the reference SitL's training cost: both models' seconds per training
+    step and per validation window measured side by side in this process (sitl/train_cost.py), then
+    the GNS training, validating as often (eval_steps scaled with its steps), that costs what the
+    reference SitL's does. Measured once, then kept in budget.json so that the run's key is stable.
+    The two reference trainings' own wall times are recorded beside it, for comparison only: they
+    depend on what else the machine ran meanwhile."""
+    from sitl import train_cost
+
     side = study_dir(results) / "runs" / "gns_equal_cost" / "budget.json"
     if side.exists():
         return json.loads(side.read_text())
-    ref = {}
+    ref = [r for r in runs(exp) if r.group == "reference" and r.kind == "sitl"][0]
+    base, folder = locate(profile, exp, results, ref)
+    t = base.train
+    print("study: timing GNS and SitL training side by side for the equal-cost budget (sitl/train_cost.py)",
+          flush=True)
+    cost = train_cost.measure(base, folder)
+    sitl_s = train_cost.training_s(cost["sitl"], t.step_max, t.eval_steps, t.eval_n_trajs)
+    n_evals = t.step_max // t.eval_steps
+    steps = max(1, int(round((sitl_s - n_evals * t.eval_n_trajs * cost["gns"]["s_per_window"])
+                             / cost["gns"]["s_per_step"])))
+    recorded = {}
     for r in runs(exp):
         if r.group == "reference" and r.kind in ("gns", "sitl"):
-            rexp = run_experiment(profile, exp, r)
-            tj = S.ckpt_dir(run_results(results, exp, rexp, r), r.kind) / "train.json"
-            rec = json.loads(tj.read_text()) if tj.exists() else {}
-            if not rec.get("complete"):
-                raise FileNotFoundError(f"{tj}: the reference {r.kind} must be trained first")
-            ref[r.kind] = rec
-            base = rexp
-    steps = max(1, int(round(ref["sitl"]["wall_s"] / ref["gns"]["s_per_step"])))
-    t = base.train
-    budget = {"sitl_train_wall_s": ref["sitl"]["wall_s"], "gns_s_per_step": ref["gns"]["s_per_step"],
-              "step_max": steps,
+            rexp, rfolder = locate(profile, exp, results, r)
+            rec = json.loads((S.ckpt_dir(rfolder, r.kind) / "train.json").read_text()) \
+                if (S.ckpt_dir(rfolder, r.kind) / "train.json").exists() else {}
+            recorded[r.kind] = {k: rec.get(k) for k in ("wall_s", "s_per_step", "complete")}
+    budget = {"cost": cost, "sitl_training_s": sitl_s, "sitl_step_max": t.step_max, "step_max": steps,
+              "recorded_trainings": recorded,
               "overrides": {"train": {"step_max": steps,
                                       "lr_decay_steps": float(t.lr_decay_steps) * steps / t.step_max,
-                                      "eval_steps": max(1, min(steps, int(round(t.eval_steps * steps / t.step_max)))),
+                                      # as many validations as SitL's (steps // eval_steps of them)
+                                      "eval_steps": max(1, steps // max(1, n_evals)),
                                       "log_steps": max(1, int(round(t.log_steps * steps / t.step_max)))}}}
     side.parent.mkdir(parents=True, exist_ok=True)
     side.write_text(json.dumps(budget, indent=2) + "\n")
@@ -325,9 +338,13 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
         lines.append(f"| {r['label']} | {_f(r['M'])} | {_f(r['noise_std'])} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r['e_kin'])} | {vs} | {r.get('verdict', '')} |")
     if budget:
-        lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps = the reference SitL's training wall "
-                      f"{budget['sitl_train_wall_s']:.0f} s at GNS's measured {budget['gns_s_per_step']:.3g} s / step "
-                      "(both including their validation rollouts)."]
+        c = budget["cost"]
+        lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps, the cost of the reference SitL's "
+                      f"{budget['sitl_step_max']} steps with their validations ({budget['sitl_training_s']:.0f} s "
+                      f"predicted), from both models timed side by side in one process "
+                      f"(sitl/train_cost.py): SitL {c['sitl']['s_per_step']:.3g} s / step and "
+                      f"{c['sitl']['s_per_window']:.3g} s / validation window, GNS {c['gns']['s_per_step']:.3g} s / "
+                      f"step and {c['gns']['s_per_window']:.3g} s / window."]
     af = [r for r in flat if r["group"] == "authors_force"]
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",
@@ -369,7 +386,7 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
             ax1.errorbar([r["noise_std"] * 1.15], [r["mse20"]], yerr=err(r) if r["finite"] else None, fmt="s",
                          color="C4", capsize=3, label=f"SitL, training seed {r['seed']}")
     for name, color, lab in ((f"solver_L{l0}", "C0", f"solver only (L={l0})"), ("gns", "C2", "GNS"),
-                             ("gns_equal_cost", "C2", "GNS at SitL's training wall time")):
+                             ("gns_equal_cost", "C2", "GNS at SitL's training cost")):
         r = by.get(name)
         if r and r["finite"]:
             ax1.axhline(r["mse20"], color=color, ls="-" if name != "gns_equal_cost" else "--", lw=1, label=lab)

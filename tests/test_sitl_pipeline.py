@@ -57,6 +57,9 @@ def test_table1_and_fig3_smoke():
             assert math.isfinite(v) and v >= 0, (metric, m, v)
             assert float(rows[metric][f"{m}_paper"]) > 0
     assert "Solver only (paper)" in (RESULTS / "table1" / "table1.md").read_text()
+    # the solver alone is never trained: no training noise, steps or wall time in its column
+    for metric in ("training noise_std", "training steps", "training wall s"):
+        assert rows[metric]["solver_ours"] == "" and rows[metric]["sitl_ours"] != "", (metric, rows[metric])
     # every number with its spread: per-window values, a bootstrap interval around the mean
     for m in ("solver", "gns", "sitl"):
         met = json.loads((RESULTS / "sitl" / "metrics" / f"{m}.json").read_text())

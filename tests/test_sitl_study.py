@@ -3,8 +3,8 @@ folder: every kind of run of the study once, tiny (study.overrides of the smoke 
 steps, a 4-wide network, one test window), its table and figure, and a second call that repeats
 nothing. Shares the smoke dataset of results/smoke when there is one (copied, as test_sitl_cost).
 
-Checked beyond "it ran": the equal-cost GNS's step budget recomputed from the two reference
-training records; each run trained with its own settings (noise, substeps); SitL compared with the
+Checked beyond "it ran": the equal-cost GNS's step budget recomputed from both models' timed
+seconds per step and per validation window; each run trained with its own settings (noise, substeps); SitL compared with the
 solver alone at its own L on the same windows; the authors' uniform force far worse on the kinetic
 energy than the per-particle force (half of the fluid pushed the wrong way), and the per-particle
 run equal to the study's own solver-only run (the same model on the same window). FAILS, not skips,
@@ -96,14 +96,25 @@ def test_sitl_is_compared_with_the_solver_at_its_own_substeps(study):
             assert r["verdict"] in ("lower", "higher", "undecided")
 
 
-def test_equal_cost_budget_from_the_reference_trainings(study):
+def test_equal_cost_budget_from_both_models_timed_side_by_side(study):
     results, rows, _, _ = study
-    runs = results / "sitl_study" / "runs"
-    sitl = json.loads((S.ckpt_dir(runs / "sitl", "sitl") / "train.json").read_text())
-    gns = json.loads((S.ckpt_dir(runs / "gns", "gns") / "train.json").read_text())
-    budget = json.loads((runs / "gns_equal_cost" / "budget.json").read_text())
-    steps = max(1, round(sitl["wall_s"] / gns["s_per_step"]))
+    budget = json.loads((results / "sitl_study" / "runs" / "gns_equal_cost" / "budget.json").read_text())
+    exp = S.load("smoke", overrides=S.load("smoke").study.overrides)
+    t, c = exp.train, budget["cost"]
+    for kind in ("sitl", "gns"):  # medians of the timed samples, all positive
+        for part in ("step", "window"):
+            samples = c[kind][f"{part}_samples"]
+            assert len(samples) == c["settings"]["repeats"] and min(samples) > 0, (kind, part, samples)
+            assert c[kind][f"s_per_{part}"] == pytest.approx(sorted(samples)[len(samples) // 2])
+    # SitL's training: its steps and its validations (every eval_steps, on eval_n_trajs windows)
+    n_evals = t.step_max // t.eval_steps
+    sitl_s = t.step_max * c["sitl"]["s_per_step"] + n_evals * t.eval_n_trajs * c["sitl"]["s_per_window"]
+    assert budget["sitl_training_s"] == pytest.approx(sitl_s)
+    # GNS's steps: the same cost with as many validations
+    steps = max(1, round((sitl_s - n_evals * t.eval_n_trajs * c["gns"]["s_per_window"]) / c["gns"]["s_per_step"]))
     assert budget["step_max"] == steps and int(rows["gns_equal_cost"]["train_steps"]) == steps, (budget, steps)
+    over = budget["overrides"]["train"]
+    assert over["step_max"] // over["eval_steps"] == n_evals or steps < 2 * n_evals, over
 
 
 def test_authors_force(study):
