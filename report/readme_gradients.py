@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import SourceMissing, _find, sci
+from .readme_tables import SourceMissing, find_source, sci
 
 CASES = {"tgv": "Taylor-Green vortex", "ldc": "lid-driven cavity (moving lid, no-slip walls)"}
 OPTIMIZERS = {"gd": "GD on the MSE", "adam": "Adam", "gd_rmse": "GD on the RMSE (the paper's)"}
@@ -19,7 +19,7 @@ OPTIMIZERS = {"gd": "GD on the MSE", "adam": "Adam", "gd_rmse": "GD on the RMSE 
 def gradients(snapshot: Path) -> list:
     lines = []
     try:
-        g = pd.read_csv(_find(snapshot, "fig1/metrics.csv"))
+        g = pd.read_csv(find_source(snapshot, "fig1/metrics.csv"))
     except SourceMissing:
         g = None
     if g is not None:
@@ -32,7 +32,7 @@ def gradients(snapshot: Path) -> list:
             lines.append(f"| {CASES.get(case, case)}, {int(t['n_fluid'].iloc[0])} fluid particles | {cell['float64']} | "
                          f"{cell['float32']} | {ad_s} |")
     try:
-        inv = pd.read_csv(_find(snapshot, "fig2/summary.csv"))
+        inv = pd.read_csv(find_source(snapshot, "fig2/summary.csv"))
     except SourceMissing:
         inv = None
     if inv is not None:

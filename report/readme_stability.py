@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import _find, duration
+from .readme_tables import find_source, duration
 from .stability import _bool
 
 
@@ -15,7 +15,7 @@ def _g(v, spec: str = ".2g") -> str:
 
 
 def stability(snapshot: Path) -> list:
-    t = pd.read_csv(_find(snapshot, "stability/stability.csv"))
+    t = pd.read_csv(find_source(snapshot, "stability/stability.csv"))
     lines = ["| case | method | expected | result | as expected | max abs(rho/rho0 - 1) | crossed a wall / left the box | "
              "energy drift | wall |", "|---|---|---|---|---|---|---|---|---|"]
     for _, r in t.iterrows():

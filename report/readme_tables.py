@@ -42,7 +42,7 @@ FALLBACK = "cpu"
 """The profile a target is shown from where the paper profile needs a GPU (Table 1, report.paper)."""
 
 
-def _find(snapshot: Path, rel: str, fallback: bool = False) -> Path:
+def find_source(snapshot: Path, rel: str, fallback: bool = False) -> Path:
     """snapshot/rel, or (fallback) the same file in the sibling snapshot of the `cpu` profile."""
     for base in (snapshot, snapshot.parent / FALLBACK) if fallback else (snapshot,):
         if (base / rel).exists():
@@ -51,7 +51,7 @@ def _find(snapshot: Path, rel: str, fallback: bool = False) -> Path:
 
 
 def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
-    return pd.read_csv(_find(snapshot, rel))
+    return pd.read_csv(find_source(snapshot, rel))
 
 
 def pct(v, digits: int = 3) -> str:
@@ -86,7 +86,7 @@ def tgv2d(snapshot: Path) -> list:
 
 
 def table1(snapshot: Path) -> list:
-    src = _find(snapshot, "table1/table1.csv", fallback=True)
+    src = find_source(snapshot, "table1/table1.csv", fallback=True)
     t = pd.read_csv(src).set_index("metric")
     note = [] if src.is_relative_to(snapshot) else \
         [f"_Profile `{src.parents[1].name}` ({src.parents[1].name}/table1/table1.csv of the snapshot): the paper "
@@ -144,7 +144,7 @@ def table1_comparisons(src: Path) -> list:
 
 
 def atlas_table(snapshot: Path, profile: str) -> list:
-    runs = _find(snapshot, "accuracy/runs.csv")
+    runs = find_source(snapshot, "accuracy/runs.csv")
     lines = ["| error you accept | cheapest setting that reaches it | wall time of the run |", "|---|---|---|"]
     for r in atlas.cheapest(runs, profile):
         if r.run is None:
@@ -166,7 +166,7 @@ def figures(snapshot: Path, readme: Path) -> list:
         figs = []
         for f in entry.get("figures") or []:
             try:
-                figs.append(_find(snapshot, f, fallback=bool(entry.get("fallback"))))
+                figs.append(find_source(snapshot, f, fallback=bool(entry.get("fallback"))))
             except SourceMissing:
                 pass
         if not cap or not figs:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, _find, duration
+from .readme_tables import METHODS, find_source, duration
 
 
 def _pct(v) -> str:
@@ -15,7 +15,7 @@ def _pct(v) -> str:
 
 
 def fig9(snapshot: Path) -> list:
-    t = pd.read_csv(_find(snapshot, "fig9/metrics.csv"))
+    t = pd.read_csv(find_source(snapshot, "fig9/metrics.csv"))
     order = {m: i for i, m in enumerate(METHODS)}
     t = t.assign(_m=t["method"].map(order).fillna(99)).sort_values(["n_side", "_m"])
     lines = ["| particles | method | E_kin RMS rel. deviation | E_kin at the end | -dE/dt RMS dev. / ref. peak | "

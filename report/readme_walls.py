@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, SourceMissing, _find, duration, pct
+from .readme_tables import METHODS, SourceMissing, find_source, duration, pct
 
 
 def _g(v, digits: int = 3) -> str:
@@ -24,7 +24,7 @@ def cavity(snapshot: Path) -> list:
     figs = {}
     for fig in ("fig6", "fig7"):
         try:
-            figs[fig] = pd.read_csv(_find(snapshot, f"{fig}/metrics.csv"))
+            figs[fig] = pd.read_csv(find_source(snapshot, f"{fig}/metrics.csv"))
         except SourceMissing:
             pass
     if not figs:
@@ -45,7 +45,7 @@ def cavity(snapshot: Path) -> list:
 
 
 def dambreak(snapshot: Path) -> list:
-    t = pd.read_csv(_find(snapshot, "fig8/metrics.csv")).set_index("column")
+    t = pd.read_csv(find_source(snapshot, "fig8/metrics.csv")).set_index("column")
     tall, square = t.loc["tall"], (t.loc["square"] if "square" in t.index else None)
     lines = ["| quantity | here | reference |", "|---|---|---|",
              f"| pressure arrival at the downstream sensor, t sqrt(g/H) | {_g(tall['p_arrival_t'], 4)} | "
@@ -64,13 +64,13 @@ def dambreak(snapshot: Path) -> list:
 
 
 def heat(snapshot: Path) -> list:
-    v = pd.read_csv(_find(snapshot, "heat_validation/metrics.csv")).sort_values("dx", ascending=False)
+    v = pd.read_csv(find_source(snapshot, "heat_validation/metrics.csv")).sort_values("dx", ascending=False)
     lines = ["| heat operator: dx | " + " | ".join(f"{d:g}" for d in v["dx"]) + " |",
              "|---|" + "---|" * len(v),
              "| decay rate of a sine temperature against the exact one | "
              + " | ".join(pct(abs(e), 2) for e in v["decay_rate_relerr"]) + " |"]
     try:
-        c = pd.read_csv(_find(snapshot, "fig10/metrics.csv")).iloc[0]
+        c = pd.read_csv(find_source(snapshot, "fig10/metrics.csv")).iloc[0]
     except SourceMissing:
         return lines + ["", "_fig10: not in this snapshot yet._"]
     return lines + ["", f"Heated channel (Fig. 10, dx {c['dx']:g}, to t = {c['t_end']:.3g}): fluid temperature within "
@@ -83,7 +83,7 @@ def heat(snapshot: Path) -> list:
 def _density(snapshot: Path, c) -> str:
     """The channel's density error: at the start (its lattice), at most afterwards, at the end."""
     try:
-        e = pd.read_csv(_find(snapshot, "fig10/series.csv"))["density_error"]
+        e = pd.read_csv(find_source(snapshot, "fig10/series.csv"))["density_error"]
     except (SourceMissing, KeyError):
         return f"density error at most {pct(c['density_error_max'], 2)}, {pct(c['density_error_end'], 2)} at the end"
     return (f"density error {pct(e.iloc[0], 2)} in the starting lattice, at most {pct(e.iloc[1:].max(), 2)} "
