@@ -295,12 +295,22 @@ def table(exp: S.Experiment, rows: dict) -> list:
             ratio, lo, hi = stats.paired_ratio(m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"],
                                                n_boot)
             row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
-                       verdict=stats.verdict(lo, hi, m["n_rollouts"]) if ref["metrics"]["finite"] or not m["finite"]
-                       else "lower (solver diverged)")
-            if not ref["metrics"]["finite"] and m["finite"]:
-                row.update(ratio_mse20=0.0, ratio_lo=0.0, ratio_hi=0.0)
+                       verdict=stats.verdict(lo, hi, m["n_rollouts"]))
+            row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"]))
         out.append(row)
     return out
+
+
+def diverged_verdict(finite: bool, ref_finite: bool) -> dict:
+    """The comparison with the solver alone when either rollout went non-finite (NaN / inf positions;
+    a finite rollout that blew up is compared by its numbers): {} when both are finite."""
+    if finite and ref_finite:
+        return {}
+    if finite:
+        return {"ratio_mse20": 0.0, "ratio_lo": 0.0, "ratio_hi": 0.0, "verdict": "lower (solver diverged)"}
+    if ref_finite:
+        return {"ratio_mse20": math.inf, "ratio_lo": math.inf, "ratio_hi": math.inf, "verdict": "higher (diverged)"}
+    return {"ratio_mse20": math.nan, "ratio_lo": math.nan, "ratio_hi": math.nan, "verdict": "both diverged"}
 
 
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",

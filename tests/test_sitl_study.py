@@ -190,3 +190,15 @@ def test_a_run_held_by_another_process_is_waited_for_and_not_made_twice(study):
     with (results / "sitl_study" / "study.csv").open() as f:
         assert {r["name"] for r in csv.DictReader(f)} == set(rows)
 
+
+
+def test_a_non_finite_rollout_is_compared_by_which_side_diverged():
+    from sitl.study import diverged_verdict
+
+    assert diverged_verdict(True, True) == {}                       # both finite: the paired interval decides
+    assert diverged_verdict(False, True)["verdict"] == "higher (diverged)"       # e.g. SitL at M = 20 on cpu
+    assert diverged_verdict(False, True)["ratio_mse20"] == math.inf
+    assert diverged_verdict(True, False)["verdict"] == "lower (solver diverged)"
+    assert diverged_verdict(True, False)["ratio_mse20"] == 0.0
+    assert diverged_verdict(False, False)["verdict"] == "both diverged"
+    assert math.isnan(diverged_verdict(False, False)["ratio_mse20"])
