@@ -19,16 +19,6 @@ _ROOT = _TESTS.parent
 if os.environ.get("SPH_TEST_JAX_CACHE", "1") != "0":
     os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_ROOT / ".pytest_cache" / "jax-compilation-cache"))
     os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
-# The tests compile far more than they compute (smoke sizes): XLA's CPU backend at optimisation level
-# 0, without its expensive LLVM passes, compiles faster and computes the same to round-off (a float32
-# SitL rollout of 20 steps: MSE_20 within 2.3e-5 relative). Inherited by every process a test starts
-# (XLA_FLAGS). Measured 2026-12-04 on test_sitl_model.py + test_cell_list.py: 6.4 -> 5.0 min of CPU,
-# the same 56 passes. SPH_TEST_FAST_COMPILE=0 turns it off. Smoke results cached in results/smoke by a
-# test run under other flags can differ at that round-off from a re-run: `rm -rf results/smoke` once.
-if os.environ.get("SPH_TEST_FAST_COMPILE", "1") != "0" and "xla_backend_optimization_level" not in \
-        os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
-                               " --xla_llvm_disable_expensive_passes=true").strip()
 for _p in (str(_ROOT), str(_TESTS)):
     if _p not in sys.path:
         sys.path.insert(0, _p)
