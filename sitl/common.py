@@ -27,8 +27,9 @@ def _guard_diverged_rollouts():
     solver or network) every allocation overflows again and the loop never ends. Its per-batch
     rollout is replaced by the same loop (LagrangeBench 0.2.0's `_eval_batched_rollout`, MIT) that
     stops at the first non-finite predicted frame and sets it and every later frame to +inf: the
-    rollout ends, its MSE is +inf (reported as diverged), and a diverged validation never becomes the
-    best checkpoint (LagrangeBench keeps a checkpoint whose loss is lower; a NaN loss would stick).
+    rollout ends, its MSE is +inf (reported as diverged), and a diverged validation never replaces a
+    finite best checkpoint (LagrangeBench keeps a checkpoint whose loss is lower; a NaN loss would
+    stick). Its first validation is kept as the best whatever its loss.
     A re-allocation that does not cure the overflow is an error, never an endless loop."""
     from lagrangebench.evaluate import rollout as R
     from lagrangebench.utils import broadcast_from_batch, broadcast_to_batch
