@@ -301,6 +301,19 @@ def table(exp: S.Experiment, rows: dict) -> list:
     return out
 
 
+def frozen_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
+    """The scale row: particles frozen at the last input frame on the runs' test windows
+    (sitl/baseline.py), from the profile's dataset alone."""
+    from sitl import baseline, generate
+
+    base = run_experiment(profile, exp, [r for r in plan if r.group == "reference"][0])
+    b = baseline.frozen(base, generate.ready(exp, results), base.eval.bootstrap)
+    return {"name": "frozen", "group": "baseline", "kind": "data",
+            "label": "particles frozen at the last input frame (the test data alone)",
+            "mse5": b["mse5"], "mse20": b["mse20"], "mse20_lo": b["ci_mse20"][0], "mse20_hi": b["ci_mse20"][1],
+            "n_windows": b["n_windows"], "finite": True}
+
+
 def diverged_verdict(finite: bool, ref_finite: bool) -> dict:
     """The comparison with the solver alone when either rollout went non-finite (NaN / inf positions;
     a finite rollout that blew up is compared by its numbers): {} when both are finite."""
@@ -342,11 +355,11 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
     for r in flat:
         if r["group"] == "authors_force":
             continue
-        tr = "" if r["kind"] == "solver" else f"{r['train_steps']} ({_f(r['train_wall_s'])})"
+        tr = f"{r['train_steps']} ({_f(r['train_wall_s'])})" if r["kind"] in ("gns", "sitl") else ""
         vs = "" if r.get("vs") is None else f"{_f(r['ratio_mse20'])} [{_f(r['ratio_lo'])}, {_f(r['ratio_hi'])}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
-        lines.append(f"| {r['label']} | {_f(r['M'])} | {_f(r['noise_std'])} | {tr} | {_f(r['mse5'])} | {mse20} | "
-                     f"{_f(r['e_kin'])} | {vs} | {r.get('verdict', '')} |")
+        lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_f(r.get('noise_std'))} | {tr} | {_f(r['mse5'])} | {mse20} | "
+                     f"{_f(r.get('e_kin'))} | {vs} | {r.get('verdict', '')} |")
     if budget:
         c = budget["cost"]
         lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps, the cost of the reference SitL's "
@@ -401,6 +414,10 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
         if r and r["finite"]:
             ax1.axhline(r["mse20"], color=color, ls="-" if name != "gns_equal_cost" else "--", lw=1, label=lab)
             ax1.axhspan(r["mse20_lo"], r["mse20_hi"], color=color, alpha=0.15)
+    for ax in (ax1, ax2):
+        for r in flat:
+            if r["group"] == "baseline":
+                ax.axhline(r["mse20"], color="0.4", ls=":", lw=1, label="particles frozen (data alone)")
     ax1.set_xscale("log")
     ax1.set_yscale("log")
     ax1.set(xlabel=f"SitL training noise std (0 plotted at {floor:g})", ylabel="test MSE$_{20}$",
@@ -469,7 +486,7 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
             if row is not None:
                 rows[r.name] = row
     rows = {r.name: rows[r.name] for r in plan if r.name in rows}  # the study's order
-    flat = table(exp, rows)
+    flat = table(exp, rows) + [frozen_row(profile, exp, results, plan)]
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_csv(flat, out / "study.csv")

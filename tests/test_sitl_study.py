@@ -58,7 +58,7 @@ def study(tmp_path_factory):
 def test_every_run_is_made_and_tabled(study):
     results, rows, _, _ = study
     assert set(rows) == {"solver_L3", "gns", "sitl", "solver_L1", "sitl_L1", "gns_equal_cost", "sitl_noise0.0003",
-                         "authors_force_per_particle", "authors_force_uniform"}, sorted(rows)
+                         "authors_force_per_particle", "authors_force_uniform", "frozen"}, sorted(rows)
     out = results / "sitl_study"
     assert (out / "study.png").stat().st_size > 10_000
     md = (out / "study.md").read_text()
@@ -202,3 +202,24 @@ def test_a_non_finite_rollout_is_compared_by_which_side_diverged():
     assert diverged_verdict(True, False)["ratio_mse20"] == 0.0
     assert diverged_verdict(False, False)["verdict"] == "both diverged"
     assert math.isnan(diverged_verdict(False, False)["ratio_mse20"])
+
+
+def test_frozen_particles_scale_from_the_test_file_itself(study):
+    """The baseline row recomputed with h5py from test.h5 (smoke: one seed, the first window = frames
+    0..21, 2 input frames): the mean squared periodic displacement from the last input frame, per
+    particle and coordinate, over the 20 (5) rollout frames."""
+    import h5py
+    import numpy as np
+
+    results, rows = study[0], study[1]
+    data = S.data_dir(results)
+    box = np.array([b[1] - b[0] for b in json.loads((data / "metadata.json").read_text())["bounds"]])
+    with h5py.File(data / "test.h5", "r") as f:
+        pos = f["00000/position"][:22].astype(np.float64)
+    d = pos[2:22] - pos[1]
+    d -= box * np.round(d / box)
+    per_step = (d**2).mean(axis=(1, 2))
+    r = rows["frozen"]
+    assert float(r["mse20"]) == pytest.approx(per_step.mean(), rel=1e-5)
+    assert float(r["mse5"]) == pytest.approx(per_step[:5].mean(), rel=1e-5)
+    assert float(r["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])   # the solver alone tracks the flow

@@ -1,0 +1,35 @@
+"""A scale from the test data alone: the error of particles frozen at the last input frame.
+
+On the test windows every model is evaluated on (the first eval.n_trajs, round-robin over the seeds:
+`common.n_windows`), a "model" that predicts no motion at all scores, at rollout step k, the mean
+squared periodic displacement of the particles between the last input frame and frame k. MSE_5 and
+MSE_20 are LagrangeBench's (the mean over the first 5 / 20 steps of the squared displacement,
+averaged over particles and coordinates, `MetricsComputer.mse`). A model above these numbers does
+worse than not moving: the study's table shows them as its scale (sitl/study.py).
+
+    .venv-lb/bin/python -c "from sitl import baseline ..."   (used by sitl/study.py)
+"""
+import numpy as np
+
+from sitl import common as C
+from sitl import settings as S
+from sitl import stats
+
+
+def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
+    """{"mse5", "mse20", "ci_mse20", "n_windows", "per_window": {"mse5", "mse20"}} of particles frozen at
+    the last input frame, on the profile's test windows in `path` (a generated dataset folder)."""
+    _, _, data_test = C.datasets(exp, path)
+    box = np.array([b[1] - b[0] for b in data_test.metadata["bounds"]], dtype=np.float64)
+    isl, n = exp.model.input_seq_length, exp.eval.n_rollout_steps
+    per = {"mse5": [], "mse20": []}
+    for i in range(C.n_windows(exp, data_test)):
+        pos = np.asarray(data_test[i][0], dtype=np.float64)  # (particles, isl + n frames, dim)
+        d = pos[:, isl:isl + n] - pos[:, isl - 1:isl]
+        d -= box * np.round(d / box)
+        step = np.mean(d**2, axis=(0, 2))                    # per rollout step: particles and coordinates
+        per["mse5"].append(float(step[:5].mean()))
+        per["mse20"].append(float(step[:20].mean()))
+    return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
+            "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)), "n_windows": len(per["mse20"]),
+            "per_window": per}
