@@ -14,6 +14,9 @@ cached and resumable like Table 1's, gathered into one table and one figure:
   authors_force  the solver alone (L = model.substeps) with the authors' uniform force beside the
                  per-particle one, at study.authors_force_data's resolution and frame interval (cpu:
                  the paper's dx 0.025, frames every 0.01), no training
+  frozen         not a run: particles frozen at the last input frame on the same test windows
+                 (sitl/baseline.py), the scale from the data alone (a model above it does worse
+                 than not moving)
 
 Every number is a mean over the test windows of every seed with a 95 % bootstrap interval over the
 windows; each model is also compared with the solver alone at its own L (GNS: at model.substeps) on
