@@ -129,13 +129,13 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     reference SitL's does. Measured once, then kept in budget.json so that the run's key is stable.
     The two reference trainings' own wall times are recorded beside it, for comparison only: they
     depend on what else the machine ran meanwhile."""
-    from sitl import train_cost
+    from sitl import train, train_cost
 
     side = study_dir(results) / "runs" / "gns_equal_cost" / "budget.json"
     if side.exists():
         return json.loads(side.read_text())
-    ref = [r for r in runs(exp) if r.group == "reference" and r.kind == "sitl"][0]
-    base, folder = locate(profile, exp, results, ref)
+    refs = {r.kind: locate(profile, exp, results, r) for r in runs(exp) if r.group == "reference" and r.kind != "solver"}
+    base, folder = refs["sitl"]
     t = base.train
     print("study: timing GNS and SitL training side by side for the equal-cost budget (sitl/train_cost.py)",
           flush=True)
@@ -145,12 +145,9 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     steps = max(1, int(round((sitl_s - n_evals * t.eval_n_trajs * cost["gns"]["s_per_window"])
                              / cost["gns"]["s_per_step"])))
     recorded = {}
-    for r in runs(exp):
-        if r.group == "reference" and r.kind in ("gns", "sitl"):
-            rexp, rfolder = locate(profile, exp, results, r)
-            rec = json.loads((S.ckpt_dir(rfolder, r.kind) / "train.json").read_text()) \
-                if (S.ckpt_dir(rfolder, r.kind) / "train.json").exists() else {}
-            recorded[r.kind] = {k: rec.get(k) for k in ("wall_s", "s_per_step", "complete")}
+    for kind, (_, rfolder) in refs.items():
+        rec = train.read_record(S.ckpt_dir(rfolder, kind) / "train.json") or {}
+        recorded[kind] = {k: rec.get(k) for k in ("wall_s", "s_per_step", "complete")}
     budget = {"cost": cost, "sitl_training_s": sitl_s, "sitl_step_max": t.step_max, "step_max": steps,
               "recorded_trainings": recorded,
               "overrides": {"train": {"step_max": steps,
