@@ -27,3 +27,8 @@ def duration(seconds) -> str:
     if s < 7200:
         return f"{s / 60:.3g} min"
     return f"{s / 3600:.3g} h"
+
+
+def truthy(v) -> bool:
+    """A boolean cell read back from a CSV: 'True', '1', '1.0', 'yes' (any case) are true."""
+    return str(v).strip().lower() in ("true", "1", "1.0", "yes")

@@ -6,12 +6,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import find_source, duration
-from .stability import _bool
-
-
-def _g(v, spec: str = ".2g") -> str:
-    return "-" if pd.isna(v) or str(v) == "" else format(float(v), spec)
+from .fmt import truthy
+from .readme_tables import find_source, duration, sig
 
 
 def stability(snapshot: Path) -> list:
@@ -19,11 +15,11 @@ def stability(snapshot: Path) -> list:
     lines = ["| case | method | expected | result | as expected | max abs(rho/rho0 - 1) | crossed a wall / left the box | "
              "energy drift | wall |", "|---|---|---|---|---|---|---|---|---|"]
     for _, r in t.iterrows():
-        result = "pass" if _bool(r["passed"]) else f"fail ({r['failed_checks']})"
+        result = "pass" if truthy(r["passed"]) else f"fail ({r['failed_checks']})"
         crossed = "-" if pd.isna(r["n_crossed_wall"]) else f"{int(r['n_crossed_wall'])} / {int(r['n_left_domain'])}"
         lines.append(f"| {r['case']} | {r['method']} | {r['expected']} | {result} | "
-                     f"{'yes' if _bool(r['as_expected']) else '**no**'} | {_g(r['density_error_max'])} | {crossed} | "
-                     f"{_g(r['energy_drift'])} | {duration(r['wall_s'])} |")
-    n_ok = sum(_bool(v) for v in t["as_expected"])
+                     f"{'yes' if truthy(r['as_expected']) else '**no**'} | {sig(r['density_error_max'], 2)} | {crossed} | "
+                     f"{sig(r['energy_drift'], 2)} | {duration(r['wall_s'])} |")
+    n_ok = sum(truthy(v) for v in t["as_expected"])
     return lines + ["", f"{n_ok} of {len(t)} cases ended as expected (`stability/stability.md` of the snapshot has "
                         "every column and each case's criterion)."]

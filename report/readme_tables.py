@@ -64,6 +64,11 @@ def duration(s) -> str:
     return f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.2g} h"
 
 
+def sig(v, digits: int = 3) -> str:
+    """`digits` significant digits; '-' for a missing cell (None, NaN or empty)."""
+    return "-" if v is None or str(v) == "" or pd.isna(v) else f"{float(v):.{digits}g}"
+
+
 def sci(v) -> str:
     """7.1e-09 -> 7.1e-9."""
     if v is None or pd.isna(v):

@@ -13,11 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, SourceMissing, find_source, duration, pct
-
-
-def _g(v, digits: int = 3) -> str:
-    return "-" if v is None or pd.isna(v) else f"{float(v):.{digits}g}"
+from .readme_tables import METHODS, SourceMissing, find_source, duration, pct, sig
 
 
 def cavity(snapshot: Path) -> list:
@@ -37,7 +33,7 @@ def cavity(snapshot: Path) -> list:
         for _, r in t.iterrows():
             lines.append(f"| {fig} | {METHODS.get(r['method'], r['method'])} | {r['dx']:g} | "
                          f"{r['u_rms']:.4f} / {r['v_rms']:.4f} | {r['u_rms_fluid']:.4f} / {r['v_rms_fluid']:.4f} | "
-                         f"{pct(r['density_error_max'], 2)} | {duration(r['wall_s'])} | {_g(r['ms_per_step'])} |")
+                         f"{pct(r['density_error_max'], 2)} | {duration(r['wall_s'])} | {sig(r['ms_per_step'])} |")
     missing = [f for f in ("fig6", "fig7") if f not in figs]
     if missing:
         lines += ["", f"_{', '.join(missing)}: not in this snapshot yet._"]
@@ -48,18 +44,18 @@ def dambreak(snapshot: Path) -> list:
     t = pd.read_csv(find_source(snapshot, "fig8/metrics.csv")).set_index("column")
     tall, square = t.loc["tall"], (t.loc["square"] if "square" in t.index else None)
     lines = ["| quantity | here | reference |", "|---|---|---|",
-             f"| pressure arrival at the downstream sensor, t sqrt(g/H) | {_g(tall['p_arrival_t'], 4)} | "
-             f"{_g(tall['ref_p_arrival_t'], 4)} (Buchner) |",
-             f"| first pressure peak, p / (rho g H) (smoothed) | {_g(tall['p_peak_smooth'])} at "
-             f"{_g(tall['p_peak_t_smooth'])} | {_g(tall['ref_p_peak'])} at {_g(tall['ref_p_peak_t'])} (Buchner) |",
+             f"| pressure arrival at the downstream sensor, t sqrt(g/H) | {sig(tall['p_arrival_t'], 4)} | "
+             f"{sig(tall['ref_p_arrival_t'], 4)} (Buchner) |",
+             f"| first pressure peak, p / (rho g H) (smoothed) | {sig(tall['p_peak_smooth'])} at "
+             f"{sig(tall['p_peak_t_smooth'])} | {sig(tall['ref_p_peak'])} at {sig(tall['ref_p_peak_t'])} (Buchner) |",
              f"| max density error / fluid particles that left the tank | {pct(tall['density_error_max'], 2)} / "
              f"{int(tall['n_left_tank'])} | - |"]
     if square is not None:
         lines += [f"| square column: surge front, max / mean \\|x / x_MM - 1\\| for t sqrt(g/H) <= 2.5 | "
                   f"{pct(square['front_relerr_max'])} / {pct(square['front_relerr_mean'])} | Martin & Moyce |",
                   f"| square column: residual height at the back wall, max \\|h - h_MM\\| / H | "
-                  f"{_g(square['height_abserr_max'], 2)} | Martin & Moyce |"]
-    walls = ", ".join(f"{c} {duration(r['wall_s'])} ({_g(r['ms_per_step'])} ms per step)" for c, r in t.iterrows())
+                  f"{sig(square['height_abserr_max'], 2)} | Martin & Moyce |"]
+    walls = ", ".join(f"{c} {duration(r['wall_s'])} ({sig(r['ms_per_step'])} ms per step)" for c, r in t.iterrows())
     return lines + ["", f"Riemann SPH, dx {tall['dx']:g}, to t sqrt(g/H) = {tall['t_end']:.3g}; wall time: {walls}."]
 
 
@@ -74,9 +70,9 @@ def heat(snapshot: Path) -> list:
     except SourceMissing:
         return lines + ["", "_fig10: not in this snapshot yet._"]
     return lines + ["", f"Heated channel (Fig. 10, dx {c['dx']:g}, to t = {c['t_end']:.3g}): fluid temperature within "
-                        f"[{_g(c['T_fluid_min'])}, {_g(c['T_fluid_max'])}] (wall values [{_g(c['T_all_min'])}, "
-                        f"{_g(c['T_all_max'])}]), bulk velocity {pct(abs(c['u_bulk_relerr_end']), 2)} from the laminar "
-                        f"value, Nusselt number {_g(c['Nu_hot_end'])} at the heated segment, "
+                        f"[{sig(c['T_fluid_min'])}, {sig(c['T_fluid_max'])}] (wall values [{sig(c['T_all_min'])}, "
+                        f"{sig(c['T_all_max'])}]), bulk velocity {pct(abs(c['u_bulk_relerr_end']), 2)} from the laminar "
+                        f"value, Nusselt number {sig(c['Nu_hot_end'])} at the heated segment, "
                         f"{_density(snapshot, c)}."]
 
 

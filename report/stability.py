@@ -3,6 +3,7 @@ outcome and the numbers behind it, each a trace into results/<profile>/stability
 from dataclasses import dataclass
 from pathlib import Path
 
+from .fmt import truthy
 from .trace import Trace, read_table
 
 NUMBERS = (("density_error_max", "max |rho/rho0 - 1|"), ("n_crossed_wall", "crossed a wall"),
@@ -19,10 +20,6 @@ class CaseRow:
     traces: dict  # column -> Trace
 
 
-def _bool(v) -> bool:
-    return str(v).strip().lower() in ("true", "1", "1.0", "yes")
-
-
 def matrix(csv) -> list:
     csv = Path(csv).resolve()
     t = read_table(csv)
@@ -31,6 +28,6 @@ def matrix(csv) -> list:
         where = {"case": r["case"]}
         traces = {c: Trace(csv, c, where, display="duration" if c == "wall_s" else "number")
                   for c, _ in NUMBERS if c in t and str(r[c]) not in ("", "nan")}
-        rows.append(CaseRow(str(r["case"]), str(r.get("method", "")), str(r.get("expected", "")), _bool(r.get("passed")),
-                            _bool(r.get("as_expected")), traces))
+        rows.append(CaseRow(str(r["case"]), str(r.get("method", "")), str(r.get("expected", "")), truthy(r.get("passed")),
+                            truthy(r.get("as_expected")), traces))
     return rows
