@@ -59,12 +59,15 @@ def snapshot(profile: str, results, out) -> Path:
     page = results / "report" / "index.html"
     if not page.exists():
         raise FileNotFoundError(f"{page}: no finished report; run `make report PROFILE={profile}` first")
+    made_at = provenance.commit()  # before the copy below rewrites tracked files of docs/results
     entries = paper.targets()
     rep = model.build(results, profile)
     groups = {}  # (source folder, destination folder) -> figure paths
+    profiles = {out: profile}  # destination folder -> the profile its runs were made in
     for t in rep.targets:
         src = results.parent / t.profile if t.fallback else results
         dst = out.parent / t.profile if t.fallback else out
+        profiles[dst] = t.profile
         groups.setdefault((src, dst), []).extend(entries[t.name].get("figures") or [])
     for _, dst in groups:
         if dst.exists():
@@ -73,9 +76,11 @@ def snapshot(profile: str, results, out) -> Path:
     prov = json.loads((results / "report" / provenance.FILE).read_text()) \
         if (results / "report" / provenance.FILE).exists() else provenance.collect(profile)
     prov.update({"snapshot_date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-                 "snapshot_commit": provenance.commit()})
+                 "snapshot_commit": made_at})
     for _, dst in groups:
-        (dst / provenance.FILE).write_text(json.dumps(prov, indent=2) + "\n")
+        own = dict(prov, profile=profiles[dst]) if profiles[dst] == profile else \
+            dict(prov, profile=profiles[dst], shown_in=f"the {profile} report")
+        (dst / provenance.FILE).write_text(json.dumps(own, indent=2) + "\n")
     build.write(model.build(out, profile), out / "report", copy_figures=False)
     total = size_mb(*{d for _, d in groups})
     print(f"snapshot -> {out}: {n} files, {total:.2f} MB", flush=True)

@@ -203,6 +203,7 @@ def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path):
     out = snapshot.snapshot("smoke", smoke, tmp_path / "docs" / "results" / "smoke")
     assert snapshot.size_mb(out) <= snapshot.LIMIT_MB
     assert (out / "provenance.json").exists() and (out / "fig10" / "metrics.csv").exists()
+    assert json.loads((out / "provenance.json").read_text())["profile"] == "smoke"
     assert list(out.rglob("record.json"))
     page = out / "report" / "index.html"
     p = parse(page)
