@@ -42,6 +42,7 @@ help:
 	@echo "make sitl-data [PROFILE=smoke]  the RPF 2D dataset of Table 1 alone (our solver, LagrangeBench's layout)"
 	@echo "make sitl-cost [PROFILE=smoke]  Solver-in-the-Loop accuracy-cost plane: MSE_20 vs time per coarse step"
 	@echo "make sitl-study [PROFILE=smoke] when SitL beats the solver alone: noise, coarsening, seeds, equal cost"
+	@echo "make sitl-divergence [PROFILE=smoke] where the coarse solver and SitL rollouts break, step by step"
 	@echo "make <folder>                   any experiments/<folder> with a tgv2d-style rules.mk (e.g. a copy of tgv2d)"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"

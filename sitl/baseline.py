@@ -16,20 +16,26 @@ from sitl import settings as S
 from sitl import stats
 
 
-def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
-    """{"mse5", "mse20", "ci_mse20", "n_windows", "per_window": {"mse5", "mse20"}} of particles frozen at
-    the last input frame, on the profile's test windows in `path` (a generated dataset folder)."""
+def frozen_steps(exp: S.Experiment, path, n_windows: int = None) -> np.ndarray:
+    """(windows, rollout steps): the MSE at each step of particles frozen at the last input frame, on
+    the profile's test windows in `path` (a generated dataset folder; the first `n_windows`)."""
     _, _, data_test = C.datasets(exp, path)
     box = np.array([b[1] - b[0] for b in data_test.metadata["bounds"]], dtype=np.float64)
     isl, n = exp.model.input_seq_length, exp.eval.n_rollout_steps
-    per = {"mse5": [], "mse20": []}
-    for i in range(C.n_windows(exp, data_test)):
+    out = []
+    for i in range(C.n_windows(exp, data_test) if n_windows is None else n_windows):
         pos = np.asarray(data_test[i][0], dtype=np.float64)  # (particles, isl + n frames, dim)
         d = pos[:, isl:isl + n] - pos[:, isl - 1:isl]
         d -= box * np.round(d / box)
-        step = np.mean(d**2, axis=(0, 2))                    # per rollout step: particles and coordinates
-        per["mse5"].append(float(step[:5].mean()))
-        per["mse20"].append(float(step[:20].mean()))
+        out.append(np.mean(d**2, axis=(0, 2)))               # per rollout step: particles and coordinates
+    return np.array(out)
+
+
+def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
+    """{"mse5", "mse20", "ci_mse20", "n_windows", "per_window": {"mse5", "mse20"}} of particles frozen at
+    the last input frame, on the profile's test windows in `path` (a generated dataset folder)."""
+    steps = frozen_steps(exp, path)
+    per = {"mse5": [float(s[:5].mean()) for s in steps], "mse20": [float(s[:20].mean()) for s in steps]}
     return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
             "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)), "n_windows": len(per["mse20"]),
             "per_window": per}

@@ -70,3 +70,12 @@ $(SITL_COST) &: $(SITL_DATA) $(SITL)/cost.py $(SITL)/integrity.py FORCE | $(SITL
 # ONLY="sitl_L2 solver_L2" runs a subset. -> $(RESULTS)/sitl_study/study.{csv,md,png,json}
 sitl-study: $(SITL_DATA) FORCE | $(SITL_VENV)
 	$(SITL_ENV) $(SITL_PY) $(SITL)/study.py --profile $(PROFILE) --results $(RESULTS) $(if $(ONLY),--only $(ONLY))
+
+# Where the coarse rollouts break (sitl/divergence.py, issue 21): the solver alone and SitL (best and
+# last checkpoint) at each coarse L of the study, step by step on the test windows: per-step MSE, the
+# first non-finite step and its cause (an in-model list overflow, LagrangeBench's graph list, or the
+# solver), the closest particle pair. Needs the study's coarse runs; trains nothing; a diagnosis of
+# unchanged inputs is not repeated. -> $(RESULTS)/sitl_study/divergence_L<L>.{csv,md,png,json}
+.PHONY: sitl-divergence
+sitl-divergence: $(SITL_DATA) FORCE | $(SITL_VENV)
+	$(SITL_ENV) $(SITL_PY) $(SITL)/divergence.py --profile $(PROFILE) --results $(RESULTS)

@@ -7,7 +7,8 @@ Checked beyond "it ran": the equal-cost GNS's step budget recomputed from both m
 seconds per step and per validation window; each run trained with its own settings (noise, substeps); SitL compared with the
 solver alone at its own L on the same windows; the authors' uniform force far worse on the kinetic
 energy than the per-particle force (half of the fluid pushed the wrong way), and the per-particle
-run equal to the study's own solver-only run (the same model on the same window). FAILS, not skips,
+run equal to the study's own solver-only run (the same model on the same window); the step-by-step
+divergence diagnosis averaging to LagrangeBench's own metrics. FAILS, not skips,
 when .venv-lb is missing."""
 import csv
 import json
@@ -223,3 +224,30 @@ def test_frozen_particles_scale_from_the_test_file_itself(study):
     assert float(r["mse20"]) == pytest.approx(per_step.mean(), rel=1e-5)
     assert float(r["mse5"]) == pytest.approx(per_step[:5].mean(), rel=1e-5)
     assert float(r["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])   # the solver alone tracks the flow
+
+
+def test_divergence_steps_average_to_lagrangebenchs_own_metrics(study):
+    """`make sitl-divergence` rolls the study's coarse solver and SitL out step by step with its own
+    loop; the mean of its per-step MSEs over the first 5 / 20 steps must be LagrangeBench's MSE_5 /
+    MSE_20 of the same run and window (study.csv, from LagrangeBench's `infer` and MetricsComputer):
+    an independent implementation of the same rollout and metric. A second call repeats nothing."""
+    import numpy as np
+    import pandas as pd
+
+    results, rows = study[0], study[1]
+    cmd = ["make", "sitl-divergence", "PROFILE=smoke", f"RESULTS={results}"]
+    proc = subprocess.run(cmd, cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    out = results / "sitl_study"
+    t = pd.read_csv(out / "divergence_L1.csv")
+    assert set(t["model"]) == {"solver alone", "SitL, best checkpoint", "SitL, last checkpoint"}
+    assert len(t) == 3 * 20 and (t["cause"] == "finite").all()   # smoke's M = 10 is still stable
+    for model, run in (("solver alone", "solver_L1"), ("SitL, best checkpoint", "sitl_L1")):
+        mse = t[t["model"] == model].sort_values("step")["mse"].to_numpy()
+        assert np.mean(mse[:5]) == pytest.approx(float(rows[run]["mse5"]), rel=2e-3), model
+        assert np.mean(mse) == pytest.approx(float(rows[run]["mse20"]), rel=2e-3), model
+    side = json.loads((out / "divergence_L1.json").read_text())
+    assert side["windows"] == 1 and side["summary"][0]["model"] == "solver alone"
+    assert (out / "divergence_L1.png").stat().st_size > 10_000
+    again = subprocess.run(cmd, cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=900)
+    assert again.returncode == 0 and "divergence L=1: up to date" in again.stdout, again.stdout[-2000:]
