@@ -4,7 +4,8 @@ On the test windows every model is evaluated on (the first eval.n_trajs, round-r
 `common.n_windows`), a "model" that predicts no motion at all scores, at rollout step k, the mean
 squared periodic displacement of the particles between the last input frame and frame k. MSE_5 and
 MSE_20 are LagrangeBench's (the mean over the first 5 / 20 steps of the squared displacement,
-averaged over particles and coordinates, `MetricsComputer.mse`). A model above these numbers does
+averaged over particles and coordinates, `MetricsComputer.mse`); MSE_Ekin is the mean squared true
+kinetic energy (the frozen particles have none). A model above these numbers does
 worse than not moving: the study's table shows them as its scale (sitl/study.py).
 
     .venv-lb/bin/python -c "from sitl import baseline ..."   (used by sitl/study.py)
@@ -31,11 +32,34 @@ def frozen_steps(exp: S.Experiment, path, n_windows: int = None) -> np.ndarray:
     return np.array(out)
 
 
+def frozen_e_kin(exp: S.Experiment, path) -> list:
+    """Per test window, LagrangeBench's MSE_Ekin of particles frozen at the last input frame: their
+    kinetic energy is zero, so it is the mean over the rollout's velocity frames of the true E_kin^2,
+    E_kin = dx^dim sum over particles of |v|^2 with v the periodic displacement between consecutive
+    rollout frames (every eval.metrics_stride-th) over the frame interval (`MetricsComputer.e_kin`).
+    A model above it has more kinetic energy error than one that does not move at all."""
+    _, _, data_test = C.datasets(exp, path)
+    meta = data_test.metadata
+    box = np.array([b[1] - b[0] for b in meta["bounds"]], dtype=np.float64)
+    isl, n, s = exp.model.input_seq_length, exp.eval.n_rollout_steps, exp.eval.metrics_stride
+    frame_dt, vol = meta["dt"] * meta["write_every"], meta["dx"] ** meta["dim"]
+    out = []
+    for i in range(C.n_windows(exp, data_test)):
+        target = np.asarray(data_test[i][0], dtype=np.float64)[:, isl:isl + n]   # (particles, n, dim)
+        v = target[:, 1::s] - target[:, 0:-1:s]
+        v = (v - box * np.round(v / box)) / frame_dt
+        e = vol * np.sum(v**2, axis=(0, 2))
+        out.append(float(np.mean(e**2)))
+    return out
+
+
 def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
-    """{"mse5", "mse20", "ci_mse20", "n_windows", "per_window": {"mse5", "mse20"}} of particles frozen at
-    the last input frame, on the profile's test windows in `path` (a generated dataset folder)."""
+    """{"mse5", "mse20", "e_kin", "ci_mse20", "n_windows", "per_window": {"mse5", "mse20", "e_kin"}} of
+    particles frozen at the last input frame, on the profile's test windows in `path` (a generated
+    dataset folder)."""
     steps = frozen_steps(exp, path)
-    per = {"mse5": [float(s[:5].mean()) for s in steps], "mse20": [float(s[:20].mean()) for s in steps]}
-    return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
+    per = {"mse5": [float(s[:5].mean()) for s in steps], "mse20": [float(s[:20].mean()) for s in steps],
+           "e_kin": frozen_e_kin(exp, path)}
+    return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])), "e_kin": float(np.mean(per["e_kin"])),
             "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)), "n_windows": len(per["mse20"]),
             "per_window": per}

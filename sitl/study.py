@@ -311,7 +311,7 @@ def frozen_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
     return {"name": "frozen", "group": "baseline", "kind": "data",
             "label": "particles frozen at the last input frame (the test data alone)",
             "mse5": b["mse5"], "mse20": b["mse20"], "mse20_lo": b["ci_mse20"][0], "mse20_hi": b["ci_mse20"][1],
-            "n_windows": b["n_windows"], "finite": True}
+            "e_kin": b["e_kin"], "n_windows": b["n_windows"], "finite": True}
 
 
 def diverged_verdict(finite: bool, ref_finite: bool) -> dict:

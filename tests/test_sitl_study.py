@@ -208,7 +208,8 @@ def test_a_non_finite_rollout_is_compared_by_which_side_diverged():
 def test_frozen_particles_scale_from_the_test_file_itself(study):
     """The baseline row recomputed with h5py from test.h5 (smoke: one seed, the first window = frames
     0..21, 2 input frames): the mean squared periodic displacement from the last input frame, per
-    particle and coordinate, over the 20 (5) rollout frames."""
+    particle and coordinate, over the 20 (5) rollout frames; and its MSE_Ekin (a one-off check
+    against LagrangeBench's MetricsComputer on a frozen rollout agreed to 1e-7 relative)."""
     import h5py
     import numpy as np
 
@@ -224,6 +225,14 @@ def test_frozen_particles_scale_from_the_test_file_itself(study):
     assert float(r["mse20"]) == pytest.approx(per_step.mean(), rel=1e-5)
     assert float(r["mse5"]) == pytest.approx(per_step[:5].mean(), rel=1e-5)
     assert float(r["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])   # the solver alone tracks the flow
+    # MSE_Ekin: frozen particles have no kinetic energy, so it is the mean over the rollout's 19
+    # velocity frames of E^2, E = dx^2 sum |v|^2 (LagrangeBench's e_kin: no 1/2, times dx^dim)
+    meta = json.loads((data / "metadata.json").read_text())
+    v = pos[3:22] - pos[2:21]
+    v = (v - box * np.round(v / box)) / (meta["dt"] * meta["write_every"])
+    e = meta["dx"] ** 2 * (v**2).sum(axis=(1, 2))
+    assert float(r["e_kin"]) == pytest.approx(np.mean(e**2), rel=1e-5)
+    assert float(rows["solver_L3"]["e_kin"]) < 1e-3 * float(r["e_kin"])
 
 
 def test_divergence_steps_average_to_lagrangebenchs_own_metrics(study):
