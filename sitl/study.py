@@ -261,8 +261,9 @@ def reference_of(run: Run, exp: S.Experiment, rows: dict):
     return rows.get(f"solver_L{subs}")
 
 
-def table(exp: S.Experiment, rows: dict) -> list:
-    """Flat rows of study.csv."""
+def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
+    """Flat rows of study.csv; `frozen_e_kin`: the frozen particles' MSE_Ekin, above which a finite
+    rollout counts as blown up (`blew_up`)."""
     w, n_boot = exp.data.write_every, exp.eval.bootstrap
     out = []
     for name, r in rows.items():
@@ -289,14 +290,16 @@ def table(exp: S.Experiment, rows: dict) -> list:
                "s_per_step": tr.get("s_per_step"), "best_step": tr.get("best_step"),
                **{k: m.get(k) for k in ("mse5", "mse20", "e_kin", "sinkhorn")},
                "mse20_lo": m["ci_mse20"][0], "mse20_hi": m["ci_mse20"][1], "n_windows": m["n_rollouts"],
-               "finite": m["finite"], "shared_with_table1": r["shared"], "folder": r["folder"]}
+               "finite": m["finite"], "blew_up": blew_up(m.get("e_kin"), frozen_e_kin),
+               "shared_with_table1": r["shared"], "folder": r["folder"]}
         ref = reference_of(run, exp, rows)
         if ref is not None:
             ratio, lo, hi = stats.paired_ratio(m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"],
                                                n_boot)
             row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
                        verdict=stats.verdict(lo, hi, m["n_rollouts"]))
-            row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"]))
+            row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"], row["blew_up"],
+                                        blew_up(ref["metrics"].get("e_kin"), frozen_e_kin)))
         out.append(row)
     return out
 
@@ -314,21 +317,32 @@ def frozen_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
             "e_kin": b["e_kin"], "n_windows": b["n_windows"], "finite": True}
 
 
-def diverged_verdict(finite: bool, ref_finite: bool) -> dict:
-    """The comparison with the solver alone when either rollout went non-finite (NaN / inf positions;
-    a finite rollout that blew up is compared by its numbers): {} when both are finite."""
-    if finite and ref_finite:
+def diverged_verdict(finite: bool, ref_finite: bool, blew_up: bool = False, ref_blew_up: bool = False) -> dict:
+    """The comparison with the solver alone when either side diverged: its rollouts went non-finite
+    (NaN / inf positions), or stayed finite but blew up (`blew_up`: a kinetic-energy error above the
+    frozen particles', `blew_up` below). {} when neither did. A non-finite side sets the ratio
+    (inf, 0 or NaN); a finite one that blew up keeps its measured ratio."""
+    fails, ref_fails = blew_up or not finite, ref_blew_up or not ref_finite
+    if not (fails or ref_fails):
         return {}
-    if finite:
-        return {"ratio_mse20": 0.0, "ratio_lo": 0.0, "ratio_hi": 0.0, "verdict": "lower (solver diverged)"}
-    if ref_finite:
-        return {"ratio_mse20": math.inf, "ratio_lo": math.inf, "ratio_hi": math.inf, "verdict": "higher (diverged)"}
-    return {"ratio_mse20": math.nan, "ratio_lo": math.nan, "ratio_hi": math.nan, "verdict": "both diverged"}
+    out = {}
+    if not (finite and ref_finite):
+        r = 0.0 if finite else math.inf if ref_finite else math.nan
+        out = {"ratio_mse20": r, "ratio_lo": r, "ratio_hi": r}
+    out["verdict"] = "both diverged" if fails and ref_fails else "higher (diverged)" if fails \
+        else "lower (solver diverged)"
+    return out
+
+
+def blew_up(e_kin, frozen_e_kin) -> bool:
+    """A finite rollout that blew up: its MSE_Ekin is above the particles frozen at the last input
+    frame's, i.e. its kinetic energy is further from the truth than no motion at all (sitl/baseline.py)."""
+    return e_kin is not None and math.isfinite(e_kin) and frozen_e_kin is not None and e_kin > frozen_e_kin
 
 
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
            "train_wall_s", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
-           "n_windows", "finite", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict", "shared_with_table1",
+           "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict", "shared_with_table1",
            "folder"]
 
 
@@ -349,7 +363,9 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
     lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
              f"{d.dt * d.write_every:g}, W = {d.write_every})", "",
              "MSE_20: mean over the test windows of every seed [95 % bootstrap interval over the windows]; "
-             "vs solver: MSE_20 / the solver alone's at the same L on the same windows [95 % paired interval].", "",
+             "vs solver: MSE_20 / the solver alone's at the same L on the same windows [95 % paired interval]. "
+             "Diverged: a rollout that went non-finite, or stayed finite but blew up (MSE_Ekin above the frozen "
+             "particles', i.e. a kinetic energy further from the truth than no motion at all; marked *).", "",
              "| run | M | noise | training steps (wall s) | MSE_5 | MSE_20 | MSE_Ekin | vs solver | |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in flat:
@@ -359,7 +375,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
         vs = "" if r.get("vs") is None else f"{_f(r['ratio_mse20'])} [{_f(r['ratio_lo'])}, {_f(r['ratio_hi'])}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_f(r.get('noise_std'))} | {tr} | {_f(r['mse5'])} | {mse20} | "
-                     f"{_f(r.get('e_kin'))} | {vs} | {r.get('verdict', '')} |")
+                     f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} |")
     if budget:
         c = budget["cost"]
         lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps, the cost of the reference SitL's "
@@ -437,6 +453,9 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
                          fmt=marker if r["finite"] else "x", color=color, capsize=3, label=lab if i == 0 else None)
             if not r["finite"]:
                 ax2.annotate("diverged", (r["M"], top), textcoords="offset points", xytext=(4, -10), fontsize=7)
+            elif r.get("blew_up"):
+                ax2.annotate("blew up (MSE_Ekin above frozen)", (r["M"], r["mse20"]), textcoords="offset points",
+                             xytext=(-4, 6), ha="right", fontsize=7)
     ax2.set_xscale("log")
     ax2.set_yscale("log")
     ax2.set(xlabel="temporal coarsening M (fine steps per substep; L = W / M substeps)",
@@ -486,7 +505,8 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
             if row is not None:
                 rows[r.name] = row
     rows = {r.name: rows[r.name] for r in plan if r.name in rows}  # the study's order
-    flat = table(exp, rows) + [frozen_row(profile, exp, results, plan)]
+    frozen = frozen_row(profile, exp, results, plan)
+    flat = table(exp, rows, frozen["e_kin"]) + [frozen]
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_csv(flat, out / "study.csv")
