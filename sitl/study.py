@@ -317,12 +317,12 @@ def frozen_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
             "e_kin": b["e_kin"], "n_windows": b["n_windows"], "finite": True}
 
 
-def diverged_verdict(finite: bool, ref_finite: bool, blew_up: bool = False, ref_blew_up: bool = False) -> dict:
+def diverged_verdict(finite: bool, ref_finite: bool, blown: bool = False, ref_blown: bool = False) -> dict:
     """The comparison with the solver alone when either side diverged: its rollouts went non-finite
-    (NaN / inf positions), or stayed finite but blew up (`blew_up`: a kinetic-energy error above the
+    (NaN / inf positions), or stayed finite but blew up (`blown`: a kinetic-energy error above the
     frozen particles', `blew_up` below). {} when neither did. A non-finite side sets the ratio
     (inf, 0 or NaN); a finite one that blew up keeps its measured ratio."""
-    fails, ref_fails = blew_up or not finite, ref_blew_up or not ref_finite
+    fails, ref_fails = blown or not finite, ref_blown or not ref_finite
     if not (fails or ref_fails):
         return {}
     out = {}
@@ -342,8 +342,8 @@ def blew_up(e_kin, frozen_e_kin) -> bool:
 
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
            "train_wall_s", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
-           "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict", "shared_with_table1",
-           "folder"]
+           "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict",
+           "shared_with_table1", "folder"]
 
 
 def _f(x) -> str:

@@ -205,10 +205,10 @@ def test_a_non_finite_rollout_is_compared_by_which_side_diverged():
     assert math.isnan(diverged_verdict(False, False)["ratio_mse20"])
     # a finite solver that blew up (cpu, M = 10: MSE_Ekin far above the frozen particles') is diverged
     # too, and a finite run beside it keeps its measured ratio
-    assert diverged_verdict(False, True, ref_blew_up=True) == {"ratio_mse20": math.inf, "ratio_lo": math.inf,
+    assert diverged_verdict(False, True, ref_blown=True) == {"ratio_mse20": math.inf, "ratio_lo": math.inf,
                                                                "ratio_hi": math.inf, "verdict": "both diverged"}
-    assert diverged_verdict(True, True, ref_blew_up=True) == {"verdict": "lower (solver diverged)"}
-    assert diverged_verdict(True, True, blew_up=True) == {"verdict": "higher (diverged)"}
+    assert diverged_verdict(True, True, ref_blown=True) == {"verdict": "lower (solver diverged)"}
+    assert diverged_verdict(True, True, blown=True) == {"verdict": "higher (diverged)"}
 
 
 def test_blown_up_is_a_kinetic_energy_error_above_no_motion():
