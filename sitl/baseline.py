@@ -61,5 +61,5 @@ def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
     per = {"mse5": [float(s[:5].mean()) for s in steps], "mse20": [float(s[:20].mean()) for s in steps],
            "e_kin": frozen_e_kin(exp, path)}
     return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
-            "e_kin": float(np.mean(per["e_kin"])), "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)), "n_windows": len(per["mse20"]),
-            "per_window": per}
+            "e_kin": float(np.mean(per["e_kin"])), "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)),
+            "n_windows": len(per["mse20"]), "per_window": per}
