@@ -1,6 +1,7 @@
 """The accuracy atlas's cheapest-setting table (the README's "error you accept" table): for each
 error level of the atlas, the cheapest 2D TGV run of the sweep that reaches it (wall time of the
-solve), or the best run when none does. Read from results/<profile>/accuracy/runs.csv (written by
+solve, with the cores other work kept busy meanwhile where the record has it:
+sph.harness.other_load), or the best run when none does. Read from results/<profile>/accuracy/runs.csv (written by
 `make accuracy`); every cell a trace into that file (row: the run's folder)."""
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,6 +12,9 @@ import pandas as pd
 from .trace import Trace, read_table
 
 DEFAULT_LEVELS = (0.1, 0.03, 0.01, 0.003)
+OTHER_LOAD_NOTE = ("Other work meanwhile: the cores other processes kept busy, on average, while the run was "
+                   "timed (sph.harness.other_load); near 0 the wall time is this machine's speed, at 1 of 2 "
+                   "cores expect it 1.5-2 times too long.")
 DEFAULT_ERROR = "u_max_mean"
 METHOD_NAMES = {"sph": "standard SPH", "tvf": "TVF", "riemann": "Riemann SPH"}
 KERNEL_NAMES = {"quintic": "quintic", "wendland_c2": "Wendland C2", "wendland_c4": "Wendland C4"}
@@ -21,7 +25,7 @@ class LevelRow:
     level: float
     reached: bool
     run: Optional[dict]      # the cheapest run reaching the level, or the best run of the sweep
-    traces: dict             # dx, n_particles, error, wall_s -> Trace
+    traces: dict             # dx, n_particles, error, wall_s (other_load where measured) -> Trace
 
 
 def settings(profile: str) -> tuple:
@@ -70,5 +74,7 @@ def cheapest(runs_csv, profile: str) -> list:
         traces = {"dx": Trace(runs_csv.resolve(), "dx", where), "n_particles": Trace(runs_csv.resolve(), "n_particles", where),
                   "error": Trace(runs_csv.resolve(), f"err_{error}", where, absolute=True, scale=100.0),
                   "wall_s": Trace(runs_csv.resolve(), "wall_s", where, display="duration")}
+        if pd.notna(r.get("other_load", float("nan"))):  # records made before it was measured have none
+            traces["other_load"] = Trace(runs_csv.resolve(), "other_load", where)
         rows.append(LevelRow(lv, reached, r, traces))
     return rows

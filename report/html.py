@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 from . import fmt
+from .atlas import OTHER_LOAD_NOTE, setting_label
 from .markdown import NO_REASON, SMOKE_NOTE
 from .model import Report, TargetReport
 from .paper import ROOT
@@ -124,21 +125,23 @@ def atlas_section(p: Page) -> list:
     if not p.rep.atlas_rows:
         return out + ["<p>not run (<code>make accuracy</code>).</p>"]
     out.append("<table><tr><th>error you accept</th><th>cheapest setting that reaches it</th><th>its error</th>"
-               "<th>wall time of the run</th></tr>")
+               "<th>wall time of the run</th><th>other work meanwhile [cores]</th></tr>")
     for r in p.rep.atlas_rows:
         level = f"{100 * r.level:g} %"
         if r.run is None:
-            out.append(f'<tr><td class="label">{level}</td><td class="label">no run</td><td>-</td><td>-</td></tr>')
+            out.append(f'<tr><td class="label">{level}</td><td class="label">no run</td><td>-</td><td>-</td>'
+                       f'<td>-</td></tr>')
             continue
-        from .atlas import setting_label
         tr = r.traces
         setting = f"{esc(setting_label(r.run))}, dx {p.num(tr['dx'])} ({p.num(tr['n_particles'])} particles)"
         if not r.reached:
             setting = f"no setting of the sweep (best: {setting})"
+        load = p.num(tr["other_load"]) if "other_load" in tr else '<span class="label">not measured</span>'
         out.append(f'<tr><td class="label">{level}</td><td>{setting}</td><td>{p.num(tr["error"], "%")}</td>'
-                   f'<td>{p.num(tr["wall_s"]) if r.reached else "-"}</td></tr>')
+                   f'<td>{p.num(tr["wall_s"]) if r.reached else "-"}</td><td>{load}</td></tr>')
     return out + ["</table>", f'<p class="note">error: time-averaged |u_max / exact - 1|; every run: '
-                              f'{p.link(os.path.relpath(p.rep.atlas_file, ROOT)) if _inside(p.rep.atlas_file) else esc(p.rep.atlas_file)}</p>']
+                              f'{p.link(os.path.relpath(p.rep.atlas_file, ROOT)) if _inside(p.rep.atlas_file) else esc(p.rep.atlas_file)}. '
+                              f'{esc(OTHER_LOAD_NOTE)}</p>']
 
 
 def _inside(path) -> bool:

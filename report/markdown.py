@@ -3,7 +3,7 @@ every number followed by a footnote naming the file, row and column it comes fro
 import os
 
 from . import fmt
-from .atlas import setting_label
+from .atlas import OTHER_LOAD_NOTE, setting_label
 from .model import Report, TargetReport
 from .paper import ROOT
 from .stability import NUMBERS
@@ -103,16 +103,19 @@ def render(rep: Report, out_dir, links: dict) -> str:
         out += target_section(d, t)
     out += ["## What accuracy costs: the cheapest setting per error level (2D TGV)", ""]
     if rep.atlas_rows:
-        out += ["| error you accept | cheapest setting that reaches it | its error | wall time of the run |", "|---|---|---|---|"]
+        out += ["| error you accept | cheapest setting that reaches it | its error | wall time of the run | "
+                "other work meanwhile [cores] |", "|---|---|---|---|---|"]
         for r in rep.atlas_rows:
             if r.run is None:
-                out.append(f"| {100 * r.level:g} % | no run | - | - |")
+                out.append(f"| {100 * r.level:g} % | no run | - | - | - |")
                 continue
             s = f"{setting_label(r.run)}, dx {d.num(r.traces['dx'])} ({d.num(r.traces['n_particles'])} particles)"
             if not r.reached:
                 s = f"no setting of the sweep (best: {s})"
+            load = d.num(r.traces["other_load"]) if "other_load" in r.traces else "not measured"
             out.append(f"| {100 * r.level:g} % | {s} | {d.num(r.traces['error'], '%')} | "
-                       f"{d.num(r.traces['wall_s']) if r.reached else '-'} |")
+                       f"{d.num(r.traces['wall_s']) if r.reached else '-'} | {load} |")
+        out += ["", OTHER_LOAD_NOTE]
     else:
         out.append("not run (`make accuracy`).")
     out += ["", "## Stability matrix", ""]

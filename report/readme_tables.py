@@ -150,18 +150,20 @@ def table1_comparisons(src: Path) -> list:
 
 def atlas_table(snapshot: Path, profile: str) -> list:
     runs = find_source(snapshot, "accuracy/runs.csv")
-    lines = ["| error you accept | cheapest setting that reaches it | wall time of the run |", "|---|---|---|"]
+    lines = ["| error you accept | cheapest setting that reaches it | wall time of the run | other work meanwhile "
+             "[cores] |", "|---|---|---|---|"]
     for r in atlas.cheapest(runs, profile):
         if r.run is None:
-            lines.append(f"| {100 * r.level:g} % | no run | - |")
+            lines.append(f"| {100 * r.level:g} % | no run | - | - |")
             continue
         setting = f"{atlas.setting_label(r.run)}, dx {r.run['dx']:g} ({int(r.run['n_particles'])} particles)"
+        load = f"{r.traces['other_load'].value():.2g}" if "other_load" in r.traces else "not measured"
         if r.reached:
-            lines.append(f"| {100 * r.level:g} % | {setting} | {float(r.run['wall_s']):.2g} s |")
+            lines.append(f"| {100 * r.level:g} % | {setting} | {float(r.run['wall_s']):.2g} s | {load} |")
         else:
             lines.append(f"| {100 * r.level:g} % | no setting of the sweep (best: {setting}: {pct(r.run['error'], 2)}, "
-                         f"{float(r.run['wall_s']):.2g} s) | - |")
-    return lines
+                         f"{float(r.run['wall_s']):.2g} s) | - | {load} |")
+    return lines + ["", atlas.OTHER_LOAD_NOTE]
 
 
 def figures(snapshot: Path, readme: Path) -> list:

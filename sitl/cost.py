@@ -79,6 +79,7 @@ from sph.harness.cli import profile_main
 from sph.harness.configtools import to_mapping
 from sph.harness.deliver import note_input
 from sph.harness.keys import digest
+from sph.harness.other_load import OtherLoad
 from sph.harness.record import RECORD_COLUMNS, save_record
 
 HERE = Path(__file__).resolve().parent
@@ -87,7 +88,7 @@ TRAINED = ("gns", "sitl")
 KEYS = {"mse5": "val/mse5", "mse20": "val/loss", "e_kin": "val/e_kin"}
 STYLE = {"fine": ("*", "C3"), "solver": ("o", "C0"), "gns": ("^", "C2"), "sitl": ("D", "C1")}
 COLUMNS = ["name", "kind", "method", "M", "substeps", "substep_dt", "substep_over_cfl", "mse5", "mse20", "e_kin",
-           "std_mse20", "finite", "ms_per_coarse_step", "ms_min", "compile_s", "n_rollouts", "source"]
+           "std_mse20", "finite", "ms_per_coarse_step", "ms_min", "other_load", "compile_s", "n_rollouts", "source"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -310,7 +311,7 @@ def record(exp: S.Experiment, p: Point, row: dict) -> dict:
              "effects": "standard" if p.kind != "gns" else "", "kernel": "quintic" if p.kind != "gns" else "",
              "h_factor": 1.0 if p.kind != "gns" else float("nan"), "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
              "dt": frame_dt, "t_end": n * frame_dt, "wall_s": n * s, "compile_s": row["compile_s"],
-             "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb()}
+             "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb(), "other_load": row["other_load"]}
     rec = {c: fixed[c] for c in RECORD_COLUMNS}
     rec.update({f"err_{k}": row[k] for k in ("mse20", "mse5", "e_kin")})
     rec.update({k: row[k] for k in ("kind", "M", "substeps", "substep_dt", "substep_over_cfl", "finite",
@@ -435,10 +436,11 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
                      "compile_s": steppers[p.name].compile_s, "source": source})
         print(f"cost: {p.method:32s} MSE_5 {acc['mse5']:.3g}  MSE_20 {acc['mse20']:.3g}  "
               f"(compile {steppers[p.name].compile_s:.1f} s)", flush=True)
-    times = interleaved_times(steppers, exp.cost.repeats)
+    with OtherLoad() as load:
+        times = interleaved_times(steppers, exp.cost.repeats)
     for r in rows:
         med, fastest = times[r["name"]]
-        r.update(ms_per_coarse_step=1e3 * med, ms_min=1e3 * fastest)
+        r.update(ms_per_coarse_step=1e3 * med, ms_min=1e3 * fastest, other_load=load.cores)
         print(f"cost: {r['method']:32s} {r['ms_per_coarse_step']:.3g} ms per coarse step "
               f"(min {r['ms_min']:.3g})", flush=True)
 

@@ -42,6 +42,10 @@ def test_sweep_writes_the_four_outputs_and_a_record_per_run(built):
     assert np.all(np.isfinite(tgv["err_u_max_mean"])) and np.all(tgv["wall_s"] > 0)
     assert set(tgv["dtype"]) == set(sw.dtypes) and set(tgv["dx"]) == set(sw.dx)
     assert (table["experiment"] == "ldc2d").sum() == 1  # the gathered record
+    # every sweep run measured the other work beside it; the hand-made cavity record predates that
+    assert np.all(tgv["other_load"] >= 0) and table.query("experiment == 'ldc2d'")["other_load"].isna().all()
+    md = (out / "accuracy.md").read_text()
+    assert "Timing: timed alone" in md and "not measured: 1 runs" in md and "other work meanwhile [cores]" in md
 
 
 def test_float32_and_float64_errors_agree(built):

@@ -332,7 +332,7 @@ def test_the_readme_matches_its_snapshot():
 
 
 # -- make -j2 ----------------------------------------------------------------------------------------
-TIMING = {"wall_s", "compile_s", "ms_per_step", "peak_rss_mb"}
+TIMING = {"wall_s", "compile_s", "ms_per_step", "peak_rss_mb", "other_load"}
 
 
 def test_make_j2_gives_the_serial_outputs(smoke, tmp_path):

@@ -196,6 +196,7 @@ def test_run_skip_repair_and_record(tmp_path, capsys):
     assert list(rec)[:len(record.RECORD_COLUMNS)] == list(record.RECORD_COLUMNS)
     assert rec["n_particles"] == 100 and rec["dim"] == 2 and rec["err_e_kin"] == 0.1
     assert rec["n_steps"] == round(0.02 / _solver().dt) and rec["wall_s"] > 0 and rec["peak_rss_mb"] > 0
+    assert rec["other_load"] >= 0.0  # measured (Linux), a number of cores, never negative
 
 
 def test_damaged_metrics_table_names_its_file(tmp_path):

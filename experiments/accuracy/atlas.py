@@ -218,15 +218,17 @@ def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
         if not len(t):
             lines += ["no run records found (run its experiment first)", ""]
             continue
-        lines += ["| error level | cheapest run | dx | particles | error | wall time [s] |", "|---|---|---|---|---|---|"]
+        lines += [timing_line(t), "",
+                  "| error level | cheapest run | dx | particles | error | wall time [s] | other work meanwhile [cores] |",
+                  "|---|---|---|---|---|---|---|"]
         for lv in atlas.levels:
             ok = t[t["error"] <= lv]
             if ok.empty:
-                lines.append(f"| {lv:g} | - | | | | |")
+                lines.append(f"| {lv:g} | - | | | | | |")
                 continue
             r = ok.loc[ok["wall_s"].idxmin()]
             lines.append(f"| {lv:g} | {r['label']} | {r['dx']:g} | {int(r['n_particles'])} | {r['error']:.3g} | "
-                         f"{r['wall_s']:.3g} |")
+                         f"{r['wall_s']:.3g} | {_load(r.get('other_load'))} |")
         if name in fits:
             lines += ["", "| run family | observed order in dx | wall time ~ N^k |", "|---|---|---|"]
             for label, (o, e) in sorted(fits[name].items()):
@@ -234,6 +236,29 @@ def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
         lines.append("")
     lines += checkpointing_lines(out.parent.parent / "bench" / "grad_memory.csv")
     (out / "accuracy.md").write_text("\n".join(lines) + "\n")
+
+
+BUSY_CORES = 0.25
+"""Other work above this many cores (on average) marks a run as timed beside other work."""
+
+
+def _load(v) -> str:
+    return "not measured" if v is None or pd.isna(v) else f"{float(v):.2g}"
+
+
+def timing_line(t: pd.DataFrame) -> str:
+    """How the problem's runs were timed: how many beside other work (sph.harness.other_load), how
+    many without a measurement (records made before it was recorded)."""
+    load = pd.to_numeric(t["other_load"], errors="coerce") if "other_load" in t else pd.Series(np.nan, index=t.index)
+    known = load.dropna()
+    busy = known[known > BUSY_CORES]
+    parts = [f"timed alone (other work <= {BUSY_CORES:g} cores on average): {len(known) - len(busy)} runs"]
+    if len(busy):
+        parts.append(f"beside other work: {len(busy)} runs ({busy.min():.2g}-{busy.max():.2g} cores; their wall "
+                     "times overstate this machine's)")
+    if len(t) - len(known):
+        parts.append(f"not measured: {len(t) - len(known)} runs")
+    return "Timing: " + "; ".join(parts) + "."
 
 
 def checkpointing_lines(csv: Path) -> list:

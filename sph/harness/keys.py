@@ -22,7 +22,8 @@ SPH_ROOT = Path(__file__).resolve().parents[1]
 
 NUMBER_NEUTRAL = frozenset({
     "sph.harness", "sph.harness.animate", "sph.harness.cli", "sph.harness.configtools", "sph.harness.io",
-    "sph.harness.keys", "sph.harness.layout", "sph.harness.record", "sph.harness.runs", "sph.harness.stamp",
+    "sph.harness.keys", "sph.harness.layout", "sph.harness.other_load", "sph.harness.record", "sph.harness.runs",
+    "sph.harness.stamp",
     "sph.harness.tables", "sph.harness.xdmf", "sph.harness.xla_cpu", "sph.harness.deliver", "sph.harness.figures"})
 """sph modules that cannot change a run's numbers: file formats, bookkeeping, paths, the command line.
 Every other module of sph.harness counts (the studies, which set up scenes and starts: study, tgv2d,

@@ -13,8 +13,11 @@ from . import io
 from .stamp import note_current
 
 RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
-                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb")
-"""The fixed columns of a run record; the run's error metrics follow as err_<name>."""
+                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb",
+                  "other_load")
+"""The fixed columns of a run record; the run's error metrics follow as err_<name>. other_load: the cores
+other processes kept busy, on average, while the run was timed (sph.harness.other_load; NaN: not
+measured, as in runs made before it was recorded)."""
 
 
 def record(folder, *, experiment: str, target: str, method: str, errors: dict, **extra) -> dict:
@@ -32,10 +35,14 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
            "n_particles": int(meta["num_particles_max"]), "n_steps": n_steps, "dt": float(meta["dt"]),
            "t_end": float(meta["t_end"]), "wall_s": wall, "compile_s": float(meta.get("compile_s", np.nan)),
            "ms_per_step": 1e3 * wall / n_steps if n_steps else np.nan,
-           "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan))}
+           "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan)), "other_load": _number(meta.get("other_load"))}
     rec.update({f"err_{k}": float(v) for k, v in errors.items()})
     rec.update(extra)
     return rec
+
+
+def _number(v) -> float:
+    return np.nan if v is None else float(v)
 
 
 def save_record(folder, rec: dict) -> None:

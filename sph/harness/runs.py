@@ -27,6 +27,7 @@ import numpy as np
 from .. import simulate
 from . import io, xdmf
 from .lock import folder_lock
+from .other_load import OtherLoad
 from .configtools import to_mapping
 from .io import read_metadata
 from .stamp import note_current
@@ -222,14 +223,16 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
                   f"dt {solver.dt:.4g}, {n_steps} steps, a frame every {write_every}", flush=True)
         if not resume or read_metadata(spec.meta_path) is None:
             io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every))
-        res = simulate.run(solver, state, nbrs, spec.t_end, write_every, writer=writer, progress=progress,
-                           step0=step0, desc=label, callback=callback, u_limit=spec.u_limit)
+        with OtherLoad() as load:
+            res = simulate.run(solver, state, nbrs, spec.t_end, write_every, writer=writer, progress=progress,
+                               step0=step0, desc=label, callback=callback, u_limit=spec.u_limit)
         timings = {"wall_s": res.wall_s_total, "compile_s": res.compile_s, "n_steps": res.step_end,
                    "n_reallocations": res.n_reallocations_total, "peak_rss_mb": peak_rss_mb()}
         position = writer.group["position"][...]
         stats = io.lagrangebench_stats(position, solver.scene.domain.box, solver.scene.domain.periodic)
-        io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every, **stats, **timings))
-        writer.mark_complete(**timings)  # last: a run is complete only once its metadata is written
+        io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every, **stats, **timings,
+                                                      **load.fields()))
+        writer.mark_complete(**timings, other_load=load.cores)  # last: a run is complete only once its metadata is written
     xdmf.write_sidecar(spec.traj)
     note_current(spec.folder)
     print(f"{label}: {res.n_steps} steps of {solver.scene.n} particles in {res.wall_s:.2f} s "
