@@ -11,6 +11,7 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -229,6 +230,23 @@ def test_readme_tables_regenerate_the_fixture_readme_unchanged(tmp_path):
     assert rc == 1
     fixed = readme_tables.regenerate(copy.read_text(), snap, readme)
     assert fixed == text
+
+
+def test_fig9_table_says_how_busy_the_machine_was(tmp_path):
+    """The 3D TGV table's last column is each run's other_load, "not measured" for runs made before
+    it was recorded; every other cell is the metrics file's."""
+    from report import readme_tgv3d
+    row = {"case": "tgv3d", "method": "tvf", "n_side": 20, "t_end": 10.0, "e_kin_rms_rel": 0.134,
+           "e_kin_end_relerr": -0.207, "dissipation_rms_rel": 0.119, "peak_t": 3.7, "peak_dissipation": 0.0146,
+           "ms_per_step": 50.3, "wall_s": 70.5, "ref_peak_t": 4.81, "ref_peak_dissipation": 0.0129}
+    (tmp_path / "fig9").mkdir()
+    pd.DataFrame([{**row, "other_load": 0.98}, {**row, "method": "sph", "other_load": np.nan}]).to_csv(
+        tmp_path / "fig9" / "metrics.csv", index=False)
+    lines = readme_tgv3d.fig9(tmp_path)
+    sph, tvf = lines[2], lines[3]  # sorted by resolution, then method (SPH before TVF)
+    assert sph.startswith("| 20³ | SPH |") and sph.endswith("| not measured |")
+    assert tvf.startswith("| 20³ | SPH + TVF | 13.4 % | -20.7 % (t = 10) | 11.9 % | 3.7, 0.0146 | 50.3 |")
+    assert tvf.endswith("| 70 s | 0.98 |")
 
 
 def test_readme_tables_unknown_marker_or_missing_source_is_an_error(tmp_path):

@@ -166,6 +166,7 @@ def test_metrics_records_and_figure(exp, finished):
                 "peak_dissipation", "ref_peak_t", "ref_peak_dissipation", "wall_s", "ms_per_step", "early_rate"):
         assert np.all(np.isfinite(table[col])), col
     assert np.all(table["wall_s"] > 0) and np.all(table["n_particles"] == 12**3)
+    assert np.all(table["other_load"] >= 0)  # measured beside each run (sph.harness.other_load)
     assert np.all(table["e_kin_max_dev"] >= table["e_kin_rms_dev"])
     for m in exp.methods:
         rec = json.loads((S.run_dir(results, m.name, 12) / "record.json").read_text())

@@ -12,7 +12,7 @@ reference and the deviations from it are sph.cases.tgv3d_reference's (which a sc
 import h5py
 import numpy as np
 
-from sph.harness import io
+from sph.harness import io, record
 from sph.cases import tgv3d
 from sph.cases import tgv3d_reference as ref_mod
 
@@ -66,9 +66,7 @@ def metrics_row(exp: "S.Experiment", method: str, n: int, results, ref: dict = N
     row = {"case": exp.case, "method": method, "n_side": n, "dx": exp.dx(n), "dtype": exp.numerics.dtype,
            "start": exp.start, "n_particles": tr["n_particles"], "n_steps": n_steps,
            "dt": meta["dt"], "t_end": float(tr["time"][-1]), "write_every": meta["write_every"],
-           "n_frames": int(tr["time"].shape[0]), "wall_s": float(attrs["wall_s"]),
-           "compile_s": float(attrs["compile_s"]),
-           "ms_per_step": 1e3 * float(attrs["wall_s"]) / n_steps if n_steps else np.nan,
+           "n_frames": int(tr["time"].shape[0]), **record.timing(attrs, n_steps),
            "n_reallocations": int(attrs["n_reallocations"])}
     row.update(deviations(exp, ref if ref is not None else load_reference(exp), energy_series(exp, tr)))
     row["density_error_max"] = float(np.max(tr["density_error"]))

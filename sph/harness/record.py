@@ -41,6 +41,15 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
     return rec
 
 
+def timing(src, n_steps: int) -> dict:
+    """wall_s, compile_s, ms_per_step and other_load of a finished run from its traj.h5 attrs or its
+    metadata.json (`src`, a mapping): what an experiment's metrics row says of its cost. other_load
+    is NaN for runs made before it was recorded."""
+    wall = float(src.get("wall_s", np.nan))
+    return {"wall_s": wall, "compile_s": float(src.get("compile_s", np.nan)),
+            "ms_per_step": 1e3 * wall / n_steps if n_steps else np.nan, "other_load": _number(src.get("other_load"))}
+
+
 def _number(v) -> float:
     return np.nan if v is None else float(v)
 
