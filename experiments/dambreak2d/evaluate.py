@@ -17,7 +17,7 @@ Per run (every column) it writes `series.csv` next to traj.h5, one row per frame
 and one row per run into results/<profile>/dambreak2d/metrics.csv:
 
   n_fluid, n_particles, n_steps, dt, t_end, write_every, n_frames, wall_s (solve, compile excluded),
-  compile_s, ms_per_step, n_reallocations,
+  compile_s, ms_per_step, other_load (cores of other work while it was timed), n_reallocations,
   density_error_max       max over frames and fluid particles of |rho/rho_ref - 1|
   n_left_tank             fluid particles that were outside the tank interior in any frame
   pressure column (Buchner 2002; same rule for both: t_a = first time p >= peak_threshold, peak =
@@ -195,8 +195,7 @@ def evaluate_run(exp: "S.Experiment", column: "S.Column", results) -> dict:
            "dx": exp.dx, "dtype": exp.numerics.dtype, "walls": exp.effects.walls,
            "n_fluid": int(np.sum(tr["particle_type"] == sph.FLUID)), "n_particles": int(tr["particle_type"].size),
            "n_steps": n_steps, "dt": meta["dt"], "t_end": float(tr["time"][-1]), "write_every": meta["write_every"],
-           "n_frames": int(tr["time"].size), "wall_s": float(attrs["wall_s"]), "compile_s": float(attrs["compile_s"]),
-           "ms_per_step": 1e3 * float(attrs["wall_s"]) / n_steps if n_steps else np.nan,
+           "n_frames": int(tr["time"].size), **record.timing(attrs, n_steps),
            "n_reallocations": int(attrs["n_reallocations"]),
            "density_error_max": float(np.max(tr["density_error"])), "n_left_tank": n_left}
     t = df["t"].to_numpy()

@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 
 from sph.cases import ldc_reference as ref
-from sph.harness import keys
+from sph.harness import keys, record
 from sph.kernels import make_kernel
 from sph.state import FLUID, MOVING_WALL, WALL
 try:
@@ -137,7 +137,6 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     outside = int(np.sum(np.any((r_end < -0.5 * dx) | (r_end > 1.0 + 0.5 * dx), axis=1)))
     meta = ip.meta
     n_steps = int(attrs.get("n_steps", 0))
-    wall_s = float(attrs.get("wall_s", np.nan))
     i_min = int(np.argmin(u_l))
     row = {"case": exp.case, "method": method, "dx": dx, "dtype": meta["dtype"],
            "n_particles": int(len(ip.tag)), "n_fluid": int(ip.fluid.sum()), "n_steps": n_steps, "dt": meta["dt"],
@@ -150,9 +149,7 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
            "v_max": float(np.max(v_l)), "v_min": float(np.min(v_l)),
            "profile_change": change, "e_kin_change": ref.window_change(t, ip.e_kin, an.steady_window),
            "e_kin_end": float(ip.e_kin[-1]), "density_error_max": rho_err, "fluid_outside": outside,
-           "wall_s": wall_s, "compile_s": float(attrs.get("compile_s", np.nan)),
-           "ms_per_step": 1e3 * wall_s / n_steps if n_steps else np.nan,
-           "n_reallocations": int(attrs.get("n_reallocations", 0))}
+           **record.timing(attrs, n_steps), "n_reallocations": int(attrs.get("n_reallocations", 0))}
     return row
 
 
