@@ -130,6 +130,7 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     The two reference trainings' own wall times are recorded beside it, for comparison only: they
     depend on what else the machine ran meanwhile."""
     from sitl import train, train_cost
+    from sph.harness.other_load import OtherLoad
 
     side = study_dir(results) / "runs" / "gns_equal_cost" / "budget.json"
     if side.exists():
@@ -139,7 +140,8 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     t = base.train
     print("study: timing GNS and SitL training side by side for the equal-cost budget (sitl/train_cost.py)",
           flush=True)
-    cost = train_cost.measure(base, folder)
+    with OtherLoad() as load:  # both models are timed in the same conditions; this says which
+        cost = train_cost.measure(base, folder)
     sitl_s = train_cost.training_s(cost["sitl"], t.step_max, t.eval_steps, t.eval_n_trajs)
     n_evals = t.step_max // t.eval_steps
     steps = max(1, int(round((sitl_s - n_evals * t.eval_n_trajs * cost["gns"]["s_per_window"])
@@ -148,8 +150,8 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     for kind, (_, rfolder) in refs.items():
         rec = train.read_record(S.ckpt_dir(rfolder, kind) / "train.json") or {}
         recorded[kind] = {k: rec.get(k) for k in ("wall_s", "s_per_step", "complete")}
-    budget = {"cost": cost, "sitl_training_s": sitl_s, "sitl_step_max": t.step_max, "step_max": steps,
-              "recorded_trainings": recorded,
+    budget = {"cost": cost, "other_load": load.fields()["other_load"], "sitl_training_s": sitl_s,
+              "sitl_step_max": t.step_max, "step_max": steps, "recorded_trainings": recorded,
               "overrides": {"train": {"step_max": steps,
                                       "lr_decay_steps": float(t.lr_decay_steps) * steps / t.step_max,
                                       # as many validations as SitL's (steps // eval_steps of them)
@@ -358,6 +360,11 @@ def _f(x) -> str:
     return f"{x:.3g}"
 
 
+def _other_work(cores) -> str:
+    """', beside x cores of other work' when the budget's timing measured it (sph.harness.other_load)."""
+    return "" if cores is None else f", beside {cores:.2g} cores of other work"
+
+
 def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
     d = exp.data
     lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
@@ -383,7 +390,8 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
                       f"predicted), from both models timed side by side in one process "
                       f"(sitl/train_cost.py): SitL {c['sitl']['s_per_step']:.3g} s / step and "
                       f"{c['sitl']['s_per_window']:.3g} s / validation window, GNS {c['gns']['s_per_step']:.3g} s / "
-                      f"step and {c['gns']['s_per_window']:.3g} s / window."]
+                      f"step and {c['gns']['s_per_window']:.3g} s / window"
+                      f"{_other_work(budget.get('other_load'))}."]
     af = [r for r in flat if r["group"] == "authors_force"]
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",

@@ -116,6 +116,7 @@ def test_equal_cost_budget_from_both_models_timed_side_by_side(study):
     assert budget["step_max"] == steps and int(rows["gns_equal_cost"]["train_steps"]) == steps, (budget, steps)
     over = budget["overrides"]["train"]
     assert over["step_max"] // over["eval_steps"] == n_evals or steps < 2 * n_evals, over
+    assert budget["other_load"] >= 0  # how busy the machine was while both were timed
 
 
 def test_authors_force(study):
