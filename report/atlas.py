@@ -13,8 +13,8 @@ from .trace import Trace, read_table
 
 DEFAULT_LEVELS = (0.1, 0.03, 0.01, 0.003)
 OTHER_LOAD_NOTE = ("Other work meanwhile: the cores other processes kept busy, on average, while the run was "
-                   "timed (sph.harness.other_load); near 0 the wall time is this machine's speed, at 1 of 2 "
-                   "cores expect it 1.5-2 times too long.")
+                   "timed (sph.harness.other_load). Near 0 the wall time is this machine's speed; above it the "
+                   "run shared the cores and took longer than it would alone.")
 DEFAULT_ERROR = "u_max_mean"
 METHOD_NAMES = {"sph": "standard SPH", "tvf": "TVF", "riemann": "Riemann SPH"}
 KERNEL_NAMES = {"quintic": "quintic", "wendland_c2": "Wendland C2", "wendland_c4": "Wendland C4"}

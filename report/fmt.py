@@ -29,14 +29,6 @@ def duration(seconds) -> str:
     return f"{s / 3600:.3g} h"
 
 
-def cores(v) -> str:
-    """A run's other_load (sph.harness.other_load) in a table cell; 'not measured' for runs made
-    before it was recorded."""
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "not measured"
-    return f"{float(v):.2g}"
-
-
 def truthy(v) -> bool:
     """A boolean cell read back from a CSV: 'True', '1', '1.0', 'yes' (any case) are true."""
     return str(v).strip().lower() in ("true", "1", "1.0", "yes")

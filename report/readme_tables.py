@@ -27,7 +27,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import atlas, fmt, paper
+from sph.harness import other_load
+
+from . import atlas, paper
 
 MARKER = re.compile(r"(<!-- table:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.S)
 METHODS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
@@ -157,7 +159,7 @@ def atlas_table(snapshot: Path, profile: str) -> list:
             lines.append(f"| {100 * r.level:g} % | no run | - | - |")
             continue
         setting = f"{atlas.setting_label(r.run)}, dx {r.run['dx']:g} ({int(r.run['n_particles'])} particles)"
-        load = fmt.cores(r.traces["other_load"].value() if "other_load" in r.traces else None)
+        load = other_load.cell(r.traces["other_load"].value() if "other_load" in r.traces else None)
         if r.reached:
             lines.append(f"| {100 * r.level:g} % | {setting} | {float(r.run['wall_s']):.2g} s | {load} |")
         else:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .fmt import cores
+from sph.harness.other_load import cell
+
 from .readme_tables import METHODS, find_source, duration
 
 
@@ -26,10 +27,9 @@ def fig9(snapshot: Path) -> list:
         lines.append(f"| {int(r['n_side'])}³ | {METHODS.get(r['method'], r['method'])} | "
                      f"{100 * float(r['e_kin_rms_rel']):.1f} % | {_pct(r['e_kin_end_relerr'])} (t = {r['t_end']:.3g}) | "
                      f"{100 * float(r['dissipation_rms_rel']):.1f} % | {r['peak_t']:.3g}, {r['peak_dissipation']:.3g} | "
-                     f"{float(r['ms_per_step']):.3g} | {duration(r['wall_s'])} | {cores(r.get('other_load'))} |")
+                     f"{float(r['ms_per_step']):.3g} | {duration(r['wall_s'])} | {cell(r.get('other_load'))} |")
     ref = t.iloc[0]
     return lines + ["", f"Reference (JAX-Fluids): dissipation peak {ref['ref_peak_dissipation']:.4g} at "
                         f"t = {ref['ref_peak_t']:.3g}. Other work meanwhile: the cores other processes kept busy "
                         "while the run was timed (a resumed run: its last session; not measured: made before "
                         "it was recorded)."]
-

@@ -28,6 +28,7 @@ import pandas as pd  # noqa: E402
 
 from sph.harness import stamp  # noqa: E402
 from sph.harness.deliver import note_input  # noqa: E402
+from sph.harness import other_load  # noqa: E402
 from sph.harness.figures import save_figure  # noqa: E402
 
 try:  # noqa: E402
@@ -228,7 +229,7 @@ def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
                 continue
             r = ok.loc[ok["wall_s"].idxmin()]
             lines.append(f"| {lv:g} | {r['label']} | {r['dx']:g} | {int(r['n_particles'])} | {r['error']:.3g} | "
-                         f"{r['wall_s']:.3g} | {_load(r.get('other_load'))} |")
+                         f"{r['wall_s']:.3g} | {other_load.cell(r.get('other_load'))} |")
         if name in fits:
             lines += ["", "| run family | observed order in dx | wall time ~ N^k |", "|---|---|---|"]
             for label, (o, e) in sorted(fits[name].items()):
@@ -240,10 +241,6 @@ def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
 
 BUSY_CORES = 0.25
 """Other work above this many cores (on average) marks a run as timed beside other work."""
-
-
-def _load(v) -> str:
-    return "not measured" if v is None or pd.isna(v) else f"{float(v):.2g}"
 
 
 def timing_line(t: pd.DataFrame) -> str:

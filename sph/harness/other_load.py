@@ -91,3 +91,11 @@ class OtherLoad:
         where unknown, so that the JSON stays standard)."""
         f = {"other_load": self.cores, "other_cpu_s": self.other_s, "other_load_wall_s": self.wall_s}
         return {k: None if math.isnan(v) else v for k, v in f.items()}
+
+
+def cell(cores) -> str:
+    """A run's other_load in a table cell: 2 significant digits, 'not measured' for runs made before
+    it was recorded (None or NaN)."""
+    if cores is None or (isinstance(cores, float) and math.isnan(cores)):
+        return "not measured"
+    return f"{float(cores):.2g}"
