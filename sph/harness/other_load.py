@@ -8,7 +8,8 @@ averaged over the wall time measured. 0 on an idle machine; about 1 when another
 ran throughout; the run records carry it (`other_load`, sph.harness.record) so that a table of times
 can say which were taken beside other work.
 
-Where /proc/stat cannot be read (not Linux) the load is unknown: NaN.
+Where /proc/stat cannot be read (not Linux) the load is unknown: NaN. In a container whose
+/proc/stat shows the host's cores, it counts the host's other work too.
 """
 import math
 import os
