@@ -5,7 +5,7 @@ import html
 import os
 from pathlib import Path
 
-from . import fmt
+from . import fmt, timing
 from .atlas import OTHER_LOAD_NOTE, setting_label
 from .markdown import NO_REASON, SMOKE_NOTE
 from .model import Report, TargetReport
@@ -44,23 +44,11 @@ class Page:
         return f'<span class="v-{v.replace(" ", "-")}">{esc(v)}</span>'
 
 
-def timing_cell(p: Page, t: TargetReport) -> tuple:
-    wall = p.num(t.timing["wall"]) if "wall" in t.timing else "-"
-    if "compile" in t.timing:
-        wall += f" (+ {p.num(t.timing['compile'])} compile)"
-    if "ms_min" in t.timing:
-        lo, hi = t.timing["ms_min"], t.timing["ms_max"]
-        ms = p.num(lo) if lo.value() == hi.value() else f"{p.num(lo)} - {p.num(hi)}"
-    else:
-        ms = "-"
-    return wall, ms
-
-
 def summary(p: Page) -> list:
     out = ["<h2>Summary</h2>", "<table><tr><th>target</th><th>paper</th><th>verdict</th><th>wall time of the runs</th>"
            "<th>ms per step</th></tr>"]
     for t in p.rep.targets:
-        wall, ms = timing_cell(p, t) if t.run else ("-", "-")
+        wall, ms = timing.cells(p.num, t.timing) if t.run else ("-", "-")
         prof = f" ({esc(t.profile)} profile)" if t.fallback else ""
         out.append(f'<tr><td class="label"><a href="#{t.name}">{esc(t.name)}</a>{prof}</td>'
                    f'<td class="label">{esc(t.paper_where)}</td><td class="label">{p.verdict(t.verdict)}</td>'
@@ -114,7 +102,7 @@ def target_section(p: Page, t: TargetReport) -> list:
     if t.verdict == "differs":
         out.append(f"<p><b>Why it differs:</b> {esc(t.reason or NO_REASON)} (details: {p.link(t.readme)})</p>")
     if t.timing:
-        wall, ms = timing_cell(p, t)
+        wall, ms = timing.cells(p.num, t.timing)
         n = p.num(t.timing["n"]) if "n" in t.timing else "-"
         out.append(f"<p>Wall time of the {n} runs (solve): {wall}; ms per step: {ms}.</p>")
     return out

@@ -2,7 +2,7 @@
 every number followed by a footnote naming the file, row and column it comes from."""
 import os
 
-from . import fmt
+from . import fmt, timing
 from .atlas import OTHER_LOAD_NOTE, setting_label
 from .model import Report, TargetReport
 from .paper import ROOT
@@ -33,18 +33,6 @@ class Doc:
 
     def link(self, repo_path: str) -> str:
         return f"[{repo_path}]({os.path.relpath(ROOT / repo_path, self.out)})"
-
-
-def timing_text(d: Doc, t: TargetReport) -> tuple:
-    wall = d.num(t.timing["wall"]) if "wall" in t.timing else "-"
-    if "compile" in t.timing:
-        wall += f" (+ {d.num(t.timing['compile'])} compile)"
-    if "ms_min" in t.timing:
-        lo, hi = t.timing["ms_min"], t.timing["ms_max"]
-        ms = d.num(lo) if lo.value() == hi.value() else f"{d.num(lo)} - {d.num(hi)}"
-    else:
-        ms = "-"
-    return wall, ms
 
 
 def tolerance(d: Doc, c) -> str:
@@ -79,7 +67,7 @@ def target_section(d: Doc, t: TargetReport) -> list:
     if t.verdict == "differs":
         out += [f"**Why it differs:** {t.reason or NO_REASON} (details: {d.link(t.readme)})", ""]
     if t.timing:
-        wall, ms = timing_text(d, t)
+        wall, ms = timing.cells(d.num, t.timing)
         n = d.num(t.timing["n"]) if "n" in t.timing else "-"
         out += [f"Wall time of the {n} runs (solve): {wall}; ms per step: {ms}.", ""]
     return out
@@ -95,7 +83,7 @@ def render(rep: Report, out_dir, links: dict) -> str:
     out += [f"| {k} | {v} |" for k, v in rep.provenance.items()]
     out += ["", "## Summary", "", "| target | paper | verdict | wall time of the runs | ms per step |", "|---|---|---|---|---|"]
     for t in rep.targets:
-        wall, ms = timing_text(d, t) if t.run else ("-", "-")
+        wall, ms = timing.cells(d.num, t.timing) if t.run else ("-", "-")
         prof = f" ({t.profile} profile)" if t.fallback else ""
         out.append(f"| {t.name}{prof} | {t.paper_where} | {t.verdict} | {wall} | {ms} |")
     out.append("")

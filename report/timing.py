@@ -1,13 +1,15 @@
 """Wall time and ms per step of a target's runs (from its metrics file), and the expected time of a
 target for `make all`'s plan: measured where earlier runs left their times, else the documented
-estimate (docs/time_estimates.yaml)."""
+estimate (docs/time_estimates.yaml). `cells` writes the wall time (with the most other work any run
+ran beside, where every run measured it: sph.harness.other_load) and the ms per step of a target."""
 from pathlib import Path
 from typing import Optional
 
+import pandas as pd
 import yaml
 
 from .paper import ROOT
-from .trace import Trace, safe_value
+from .trace import Trace, TraceError, read_table, safe_value, select
 
 ESTIMATES = ROOT / "docs" / "time_estimates.yaml"
 DEFAULT_COLUMNS = {"wall": "wall_s", "compile": "compile_s", "ms": "ms_per_step"}
@@ -34,7 +36,37 @@ def traces(target: dict, results) -> dict:
     if cols["ms"]:
         out["ms_min"] = Trace(f, _cols(cols["ms"]), where, agg="min")
         out["ms_max"] = Trace(f, _cols(cols["ms"]), where, agg="max")
+    if _all_measured(f, where):
+        out["load_max"] = Trace(f, "other_load", where, agg="max")
     return out
+
+
+def _all_measured(f: Path, where: dict) -> bool:
+    """Every timed run of the file measured its other work (runs made before it was recorded did
+    not: then the report shows none rather than the maximum of a few)."""
+    try:
+        t = select(read_table(f), where)
+    except TraceError:
+        return False
+    return "other_load" in t and len(t) > 0 and bool(pd.to_numeric(t["other_load"], errors="coerce").notna().all())
+
+
+def cells(num, timing: dict) -> tuple:
+    """(wall, ms per step) cells of a target's timing, `num(trace)` writing one traced number (the
+    HTML page's or report.md's): the wall time with the compilation and, where the runs measured it,
+    the most other work any of them ran beside (sph.harness.other_load); ms per step as a range."""
+    wall = num(timing["wall"]) if "wall" in timing else "-"
+    extra = [f"+ {num(timing['compile'])} compile"] if "compile" in timing else []
+    if "load_max" in timing:
+        extra.append(f"other work meanwhile: up to {num(timing['load_max'])} cores")
+    if extra:
+        wall += f" ({'; '.join(extra)})"
+    if "ms_min" in timing:
+        lo, hi = timing["ms_min"], timing["ms_max"]
+        ms = num(lo) if lo.value() == hi.value() else f"{num(lo)} - {num(hi)}"
+    else:
+        ms = "-"
+    return wall, ms
 
 
 def measured_seconds(target: dict, results) -> Optional[float]:

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from report import fmt, paper, plan, readme_tables, snapshot
+from report import fmt, paper, plan, readme_tables, snapshot, timing
 from report.trace import Trace
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -188,6 +188,20 @@ def test_make_all_dry_run_lists_every_target_in_dependency_order_after_the_plan(
     assert re.search(r"fig10\s+smoke\s+[\d.]+ s\s+measured: ", head)  # the smoke fixture's own records
     assert re.search(r"fig9\s+smoke\s+[\d.]+ \w+\s+estimate: ", head)
     assert re.search(r"  total\s+[\d.]+ (s|min|h)", out)
+
+
+def test_timing_cells_say_how_busy_the_machine_was_only_when_every_run_measured_it(tmp_path):
+    """The wall-time cell names the most other work any run ran beside (sph.harness.other_load)
+    when every run of the target measured it; with one run made before that, it names none."""
+    (tmp_path / "x").mkdir()
+    rows = {"wall_s": [60.0, 30.0], "compile_s": [2.0, 1.0], "ms_per_step": [10.0, 5.0], "other_load": [0.02, 0.97]}
+    pd.DataFrame(rows).to_csv(tmp_path / "x" / "metrics.csv", index=False)
+    target = {"timing": "x/metrics.csv"}
+    num = lambda tr: fmt.duration(tr.value()) if tr.display == "duration" else fmt.number(tr.value())  # noqa: E731
+    wall, ms = timing.cells(num, timing.traces(target, tmp_path))
+    assert (wall, ms) == ("90 s (+ 3 s compile; other work meanwhile: up to 0.97 cores)", "5 - 10")
+    pd.DataFrame({**rows, "other_load": [0.02, np.nan]}).to_csv(tmp_path / "x" / "metrics.csv", index=False)
+    assert timing.cells(num, timing.traces(target, tmp_path))[0] == "90 s (+ 3 s compile)"
 
 
 def test_plan_total_is_the_sum_of_its_rows(smoke):
