@@ -111,6 +111,7 @@ snapshot: | $(VENV)
 
 readme-tables: | $(VENV)
 	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE) --readme README.md
+	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE) --readme sitl/README.md
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
 

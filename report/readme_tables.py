@@ -11,8 +11,9 @@ Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, tab
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
 (Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
-`fig9` (report/readme_tgv3d.py) and `stability` (report/readme_stability.py); these modules build
-on this one's helpers.
+`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py) and `sitl_study` (the
+Solver-in-the-Loop study's tables, report/readme_sitl.py; in sitl/README.md); these modules build
+on this one's helpers. `make readme-tables` regenerates README.md and sitl/README.md.
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
 sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
@@ -191,13 +192,15 @@ def figures(snapshot: Path, readme: Path) -> list:
 
 def tables(snapshot: Path, readme: Path, profile: str) -> dict:
     # imported here: these modules build on this one's helpers
-    from . import readme_gradients as G, readme_stability as St, readme_tgv3d as T3, readme_walls as W
+    from . import readme_gradients as G, readme_sitl as Si, readme_stability as St, readme_tgv3d as T3
+    from . import readme_walls as W
 
     return {"tgv2d": lambda: tgv2d(snapshot), "table1": lambda: table1(snapshot),
             "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme),
             "cavity": lambda: W.cavity(snapshot), "dambreak": lambda: W.dambreak(snapshot),
             "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot),
-            "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot)}
+            "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot),
+            "sitl_study": lambda: Si.study(snapshot)}
 
 
 def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> str:

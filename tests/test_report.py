@@ -350,17 +350,31 @@ def test_experiment_tables_show_the_records_cells(tmp_path):
     assert "Not in this snapshot yet" in gone and not re.search(r"\de-\d", gone)
 
 
-def test_the_readme_matches_its_snapshot():
+@pytest.mark.parametrize("readme", ["README.md", "sitl/README.md"])
+def test_the_readme_matches_its_snapshot(readme):
     """The README's marked tables are what the committed snapshot gives. Until a snapshot is
     committed, the markers must name tables the generator knows (the fixture test above checks the
     generation itself)."""
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / readme).read_text()
     snap = ROOT / "docs" / "results" / "paper"
     if snap.exists():
-        assert readme_tables.regenerate(text, snap, ROOT / "README.md") == text, "run `make readme-tables`"
-    known = set(readme_tables.tables(snap, ROOT / "README.md", "paper"))
-    assert set(readme_tables.markers(text)) <= known
+        assert readme_tables.regenerate(text, snap, ROOT / readme) == text, "run `make readme-tables`"
+    known = set(readme_tables.tables(snap, ROOT / readme, "paper"))
+    assert readme_tables.markers(text) and set(readme_tables.markers(text)) <= known
     assert text.count("<!-- table:") == text.count("<!-- /table:")
+
+
+def test_sitl_study_table_is_the_studys_own_from_the_cpu_snapshot(tmp_path):
+    """The study's tables come verbatim from its study.md (title left out), labelled with the
+    profile they were taken from when the paper snapshot has none."""
+    from report import readme_sitl
+    (tmp_path / "paper").mkdir()
+    (tmp_path / "cpu" / "sitl_study").mkdir(parents=True)
+    (tmp_path / "cpu" / "sitl_study" / "study.md").write_text("# SitL study\n\n| run | MSE_20 |\n|---|---|\n| a | 1e-07 |\n\n")
+    lines = readme_sitl.study(tmp_path / "paper")
+    assert lines[0].startswith("_Profile `cpu` (cpu/sitl_study/study.md") and lines[2:] == ["| run | MSE_20 |", "|---|---|", "| a | 1e-07 |"]
+    with pytest.raises(readme_tables.SourceMissing):
+        readme_sitl.study(tmp_path / "cpu" / "nothing")
 
 
 # -- make -j2 ----------------------------------------------------------------------------------------
