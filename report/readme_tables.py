@@ -11,8 +11,8 @@ Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, tab
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
 (Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
-`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py) and `sitl_study` (the
-Solver-in-the-Loop study's tables, report/readme_sitl.py; in sitl/README.md); these modules build
+`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `sitl_study` and
+`sitl_table1` (Solver-in-the-Loop, report/readme_sitl.py; in sitl/README.md); these modules build
 on this one's helpers. `make readme-tables` regenerates README.md and sitl/README.md.
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
@@ -200,7 +200,7 @@ def tables(snapshot: Path, readme: Path, profile: str) -> dict:
             "cavity": lambda: W.cavity(snapshot), "dambreak": lambda: W.dambreak(snapshot),
             "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot),
             "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot),
-            "sitl_study": lambda: Si.study(snapshot)}
+            **Si.tables(snapshot)}
 
 
 def regenerate(text: str, snapshot: Path, readme: Path, profile: str = None) -> str:

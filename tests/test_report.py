@@ -371,10 +371,10 @@ def test_sitl_study_table_is_the_studys_own_from_the_cpu_snapshot(tmp_path):
     (tmp_path / "paper").mkdir()
     (tmp_path / "cpu" / "sitl_study").mkdir(parents=True)
     (tmp_path / "cpu" / "sitl_study" / "study.md").write_text("# SitL study\n\n| run | MSE_20 |\n|---|---|\n| a | 1e-07 |\n\n")
-    lines = readme_sitl.study(tmp_path / "paper")
+    lines = readme_sitl.verbatim(tmp_path / "paper", "sitl_study/study.md")
     assert lines[0].startswith("_Profile `cpu` (cpu/sitl_study/study.md") and lines[2:] == ["| run | MSE_20 |", "|---|---|", "| a | 1e-07 |"]
     with pytest.raises(readme_tables.SourceMissing):
-        readme_sitl.study(tmp_path / "cpu" / "nothing")
+        readme_sitl.verbatim(tmp_path / "cpu" / "nothing", "sitl_study/study.md")
 
 
 # -- make -j2 ----------------------------------------------------------------------------------------
