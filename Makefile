@@ -110,8 +110,7 @@ snapshot: | $(VENV)
 	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE)
 
 readme-tables: | $(VENV)
-	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE) --readme README.md
-	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE) --readme sitl/README.md
+	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE)
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
 

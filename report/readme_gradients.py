@@ -4,6 +4,10 @@ tables by `make readme-tables` (report/readme_tables.py registers it):
     gradients  Fig. 1: AD against central finite differences, relative L2 error per case and dtype
                (fig1/metrics.csv); Fig. 2: final-position RMSE of the inverse problem from the
                paper's displaced start per optimizer, beside the paper's (fig2/summary.csv)
+    gradcheck  Fig. 1 in full (gradcheck/README.md): per case and dtype the relative L2 error, max
+               abs error and MSE of AD against FD, and the time of each
+    inverse    Fig. 2 in full (inverse/README.md): per case and start (displaced, random) the final
+               RMSE of every optimizer, bold below the paper's; a diverged one with its best iterate
 
 Every number is a cell of those files; nothing is typed by hand."""
 from pathlib import Path
@@ -49,4 +53,34 @@ def gradients(snapshot: Path) -> list:
                          f"{t['wall_s_per_iteration'].min():.2g}-{t['wall_s_per_iteration'].max():.2g} |")
     if not lines:
         raise SourceMissing("fig1/metrics.csv and fig2/summary.csv are not in the snapshot")
+    return lines
+
+
+def gradcheck(snapshot: Path) -> list:
+    g = pd.read_csv(find_source(snapshot, "fig1/metrics.csv"))
+    lines = ["| case | dtype | rel. L2 error AD vs FD | max abs error | MSE(AD - FD) | AD time | FD time |",
+             "|---|---|---|---|---|---|---|"]
+    for _, r in g.iterrows():
+        lines.append(f"| {CASES.get(r['case'], r['case'])} | {r['dtype']} | {sci(r['rel_l2'])} | {sci(r['max_abs'])} | "
+                     f"{sci(r['mse'])} | {float(r['ad_s']):.2g} s | {float(r['fd_s']):.2g} s |")
+    return lines
+
+
+def inverse(snapshot: Path) -> list:
+    inv = pd.read_csv(find_source(snapshot, "fig2/summary.csv"))
+    opts = [o for o in OPTIMIZERS if o in set(inv["optimizer"])]
+    lines = ["| case | start (its RMSE) | " + " | ".join(f"{OPTIMIZERS[o]}" for o in opts) + " | paper |",
+             "|---|---|" + "---|" * (len(opts) + 1)]
+    for (case, start), t in inv.groupby(["case", "start"], sort=False):
+        by = t.set_index("optimizer")
+
+        def cell(o):
+            r = by.loc[o]
+            if bool(r["diverged"]):
+                return f"diverged (best {sci(r['best_rmse_final'])})"
+            v = sci(r["rmse_final"])
+            return f"**{v}**" if float(r["rmse_final"]) < float(r["paper_rmse_final"]) else v
+        start_rmse = float(t["loss_initial"].iloc[0]) ** 0.5  # the loss is the MSE of the positions
+        lines.append(f"| {case} | {start} ({start_rmse:.2f}) | " + " | ".join(cell(o) for o in opts) +
+                     f" | {float(t['paper_rmse_final'].iloc[0]):g} |")
     return lines

@@ -5,7 +5,7 @@ records (docs/results/<profile>/), between marker comments:
     ...generated...
     <!-- /table:NAME -->
 
-    python -m report.readme_tables --snapshot docs/results/paper --readme README.md [--check]
+    python -m report.readme_tables --snapshot docs/results/paper [--readme README.md ...] [--check]
 
 Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, table1/table1.csv),
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
@@ -13,7 +13,8 @@ with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `
 (Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
 `fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `sitl_study` and
 `sitl_table1` (Solver-in-the-Loop, report/readme_sitl.py; in sitl/README.md); these modules build
-on this one's helpers. `make readme-tables` regenerates README.md and sitl/README.md.
+on this one's helpers. `make readme-tables` regenerates every README of `READMES` (the top-level one
+and the experiments' own, which show the same generated tables in their Results sections).
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
 sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
@@ -199,6 +200,7 @@ def tables(snapshot: Path, readme: Path, profile: str) -> dict:
             "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme),
             "cavity": lambda: W.cavity(snapshot), "dambreak": lambda: W.dambreak(snapshot),
             "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot),
+            "gradcheck": lambda: G.gradcheck(snapshot), "inverse": lambda: G.inverse(snapshot),
             "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot),
             **Si.tables(snapshot)}
 
@@ -228,29 +230,44 @@ def markers(text: str) -> list:
     return [m.group("name") for m in MARKER.finditer(text)]
 
 
+READMES = ("README.md", "sitl/README.md", "experiments/tgv2d/README.md", "experiments/tgv3d/README.md",
+           "experiments/ldc2d/README.md", "experiments/dambreak2d/README.md", "experiments/thermal/README.md",
+           "experiments/stability/README.md", "experiments/accuracy/README.md", "gradcheck/README.md",
+           "inverse/README.md")
+"""The READMEs (relative to the repository root) whose marked tables `make readme-tables` regenerates
+and tests/test_report.py checks against the committed snapshot."""
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--snapshot", default="docs/results/paper")
-    ap.add_argument("--readme", default="README.md")
+    ap.add_argument("--readme", nargs="+", default=None, help="default: every README of READMES")
     ap.add_argument("--profile", default=None, help="the atlas config's profile (default: the snapshot folder's name)")
     ap.add_argument("--check", action="store_true")
     a = ap.parse_args(argv)
-    readme = Path(a.readme)
+    rc = 0
+    for name in a.readme or [str(paper.ROOT / r) for r in READMES]:
+        rc = max(rc, one(Path(name), Path(a.snapshot), a.profile, a.check))
+    return rc
+
+
+def one(readme: Path, snapshot: Path, profile, check: bool) -> int:
+    """Regenerate (or --check) one README; 0 done / matches, 1 differs (check), 2 error."""
     old = readme.read_text()
     try:
-        new = regenerate(old, Path(a.snapshot), readme, a.profile)
+        new = regenerate(old, snapshot, readme, profile)
     except (SourceMissing, KeyError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    if a.check:
+    if check:
         if new != old:
             sys.stdout.writelines(difflib.unified_diff(old.splitlines(True), new.splitlines(True), str(readme), "generated"))
             return 1
-        print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} match {a.snapshot}")
+        print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} match {snapshot}")
         return 0
     if new != old:
         readme.write_text(new)
-    print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} {'regenerated' if new != old else 'unchanged'} from {a.snapshot}")
+    print(f"{readme}: tables {', '.join(markers(old)) or '(none)'} {'regenerated' if new != old else 'unchanged'} from {snapshot}")
     return 0
 
 

@@ -350,7 +350,7 @@ def test_experiment_tables_show_the_records_cells(tmp_path):
     assert "Not in this snapshot yet" in gone and not re.search(r"\de-\d", gone)
 
 
-@pytest.mark.parametrize("readme", ["README.md", "sitl/README.md"])
+@pytest.mark.parametrize("readme", readme_tables.READMES)
 def test_the_readme_matches_its_snapshot(readme):
     """The README's marked tables are what the committed snapshot gives. Until a snapshot is
     committed, the markers must name tables the generator knows (the fixture test above checks the
@@ -362,6 +362,16 @@ def test_the_readme_matches_its_snapshot(readme):
     known = set(readme_tables.tables(snap, ROOT / readme, "paper"))
     assert readme_tables.markers(text) and set(readme_tables.markers(text)) <= known
     assert text.count("<!-- table:") == text.count("<!-- /table:")
+
+
+def test_every_readme_with_generated_tables_is_checked():
+    """A README outside READMES would carry marked tables that neither `make readme-tables` nor the
+    test above looks at."""
+    skip = ("results", "tests", "docs", "node_modules")
+    found = {str(p.relative_to(ROOT)) for p in ROOT.rglob("README.md")
+             if not p.relative_to(ROOT).parts[0].startswith(".") and p.relative_to(ROOT).parts[0] not in skip
+             and "<!-- table:" in p.read_text()}
+    assert found <= set(readme_tables.READMES), found - set(readme_tables.READMES)
 
 
 def test_sitl_study_table_is_the_studys_own_from_the_cpu_snapshot(tmp_path):
