@@ -1,7 +1,7 @@
 """How busy the machine was with other work while a run was timed.
 
 A run's wall time is the machine's speed only when nothing else ran beside it; on a small shared
-machine (2 cores here) a second job makes the same run 1.5-2 times slower. `OtherLoad` measures the
+machine (2 cores here) a second job makes the same run slower. `OtherLoad` measures the
 CPU time every *other* process took during the run: the machine's busy time from /proc/stat (user,
 nice, system, irq, softirq and steal) less this process's own CPU time (`os.times`), in cores,
 averaged over the wall time measured. 0 on an idle machine; about 1 when another single-threaded job

@@ -13,8 +13,7 @@ from . import io
 from .stamp import note_current
 
 RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
-                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "peak_rss_mb",
-                  "other_load")
+                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "other_load", "peak_rss_mb")
 """The fixed columns of a run record; the run's error metrics follow as err_<name>. other_load: the cores
 other processes kept busy, on average, while the run was timed (sph.harness.other_load; NaN: not
 measured, as in runs made before it was recorded)."""
@@ -28,14 +27,11 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
     if meta is None:
         raise FileNotFoundError(f"{folder / 'metadata.json'}: missing or damaged; re-run the experiment")
     n_steps = int(meta.get("n_steps", 0))
-    wall = float(meta.get("wall_s", np.nan))
     rec = {"experiment": experiment, "target": target, "method": method,
            "effects": "+".join(meta.get("effects", [])) or "standard", "kernel": meta.get("kernel", ""),
            "h_factor": float((meta.get("numerics") or {}).get("h_factor", np.nan)), "dx": float(meta["dx"]), "dim": int(meta["dim"]), "dtype": meta["dtype"],
            "n_particles": int(meta["num_particles_max"]), "n_steps": n_steps, "dt": float(meta["dt"]),
-           "t_end": float(meta["t_end"]), "wall_s": wall, "compile_s": float(meta.get("compile_s", np.nan)),
-           "ms_per_step": 1e3 * wall / n_steps if n_steps else np.nan,
-           "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan)), "other_load": _number(meta.get("other_load"))}
+           "t_end": float(meta["t_end"]), **timing(meta, n_steps), "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan))}
     rec.update({f"err_{k}": float(v) for k, v in errors.items()})
     rec.update(extra)
     return rec
