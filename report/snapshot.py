@@ -6,8 +6,9 @@ commit (<= 10 MB in all; checked).
 
 What is copied, keeping the paths below results/<profile>/: the figures named in
 docs/paper_values.yaml (as palette PNGs at most 1400 px wide), every csv / md table of a target
-folder (results/<profile>/<folder>/*.{csv,md}), every record.json (any depth) and the report's
-provenance.json. Targets shown from a fallback profile (Table 1 / Fig. 3 from `cpu`) are copied
+folder (results/<profile>/<folder>/*.{csv,md}), every record.json (any depth) below a folder that
+has such a table (an experiment still running, e.g. the atlas's sweep before it gathers, has none:
+its records would be a partial set) and the report's provenance.json. Targets shown from a fallback profile (Table 1 / Fig. 3 from `cpu`) are copied
 into docs/results/<fallback>/ the same way. The report is then rebuilt from the copy, so that each
 number on the snapshot's page traces to a file of the snapshot."""
 import argparse
@@ -35,6 +36,8 @@ def copy_results(src: Path, dst: Path, figure_paths) -> int:
             _copy(f, dst / f.relative_to(src))
             n += 1
     for f in sorted(src.rglob("record.json")):
+        if not any((src / f.relative_to(src).parts[0]).glob("*.csv")):
+            continue  # an experiment still running (no table written yet): its records are partial
         _copy(f, dst / f.relative_to(src))
         n += 1
     for rel in figure_paths:

@@ -231,6 +231,18 @@ def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path):
         assert text == shown(tr, text)
 
 
+def test_snapshot_leaves_out_the_records_of_an_experiment_still_running(tmp_path):
+    """Records are copied from a results folder only once its experiment wrote its table: a sweep in
+    progress (records, no runs.csv yet) would hand over a partial set the report calls not run."""
+    src, dst = tmp_path / "results", tmp_path / "snap"
+    for rel in ("done/a/record.json", "running/tgv/b/record.json"):
+        (src / rel).parent.mkdir(parents=True)
+        (src / rel).write_text("{}")
+    (src / "done" / "metrics.csv").write_text("x\n1\n")
+    assert snapshot.copy_results(src, dst, []) == 2  # the table and the finished experiment's record
+    assert (dst / "done" / "a" / "record.json").exists() and not (dst / "running").exists()
+
+
 def test_readme_tables_regenerate_the_fixture_readme_unchanged(tmp_path):
     snap = FIXTURES / "snapshot" / "paper"
     readme = FIXTURES / "readme" / "README.md"
