@@ -20,13 +20,14 @@ DELIVER = $(PY) -m sph.harness.deliver $(OUTS) --from $(filter-out FORCE,$^) --
 
 
 .PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
-.PHONY: all all-targets all-sitl report snapshot readme-tables
+.PHONY: all all-targets all-sitl report snapshot restore readme-tables
 .DEFAULT_GOAL := help
 
 help:
 	@echo "make all [PROFILE=smoke]        every paper target, the stability matrix, the atlas and the report (resumable, -j2 safe)"
 	@echo "make report [PROFILE=smoke]     results/<profile>/report/index.html + report.md: each figure beside the paper"
 	@echo "make snapshot [PROFILE=paper]   copy the finished report, metrics and records into docs/results/<profile>/ (<= 10 MB)"
+	@echo "make restore [PROFILE=paper]    seed results/<profile>/ from the committed snapshot (a fresh clone keeps its targets)"
 	@echo "make readme-tables              README result tables from the committed snapshot (between <!-- table:NAME --> markers)"
 	@echo "make fig1 [PROFILE=smoke]       gradient check: AD vs finite differences, TGV and cavity (paper Fig. 1)"
 	@echo "make grad-growth                gradient norm against rollout length (1 ... 1000 steps)"
@@ -107,7 +108,10 @@ report: | $(VENV)
 	$(PY) -m report.build --profile $(PROFILE) --results $(RESULTS)
 
 snapshot: | $(VENV)
-	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE)
+	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE) $(if $(DROP),--drop)
+
+restore: | $(VENV)
+	$(PY) -m report.restore --profile $(PROFILE)
 
 readme-tables: | $(VENV)
 	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE)

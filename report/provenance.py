@@ -12,6 +12,7 @@ from pathlib import Path
 from .paper import ROOT
 
 PACKAGES = ("jax", "jaxlib", "jax-md")
+RESTORED = "restored.json"  # written by `make restore` (report/restore.py)
 FILE = "provenance.json"
 
 
@@ -75,8 +76,22 @@ def collect(profile: str) -> dict:
 
 
 def load_or_collect(results, profile: str) -> dict:
-    """The results' own provenance.json (a snapshot's) if there is one, else this machine's."""
+    """The results' own provenance.json (a snapshot's) if there is one, else this machine's, with the
+    folders `make restore` took from a committed snapshot (report/restore.py) named."""
     p = Path(results) / FILE
     if p.exists():
         return json.loads(p.read_text())
-    return collect(profile)
+    out = collect(profile)
+    note = restored(results)
+    if note:
+        out["restored from snapshot"] = note
+    return out
+
+
+def restored(results) -> str:
+    """Which folders of `results` came from which snapshot (`make restore`), or ''."""
+    p = Path(results) / RESTORED
+    if not p.exists():
+        return ""
+    r = json.loads(p.read_text())
+    return f"{', '.join(r['folders'])}: from the snapshot of {r['commit']} ({r['date']})"

@@ -1,6 +1,8 @@
 """`make snapshot [PROFILE=paper]`: a finished report with its figures (compressed PNGs), metrics
 tables and run records, copied into docs/results/<profile>/ with its provenance, small enough to
-commit (<= 10 MB in all; checked).
+commit (<= 10 MB in all; checked). A target the committed snapshot holds and the results do not (a
+fresh clone that ran one target) is never dropped silently: the snapshot refuses, naming it, until
+`make restore` has seeded results/ from the committed snapshot (or DROP=1 says to drop it).
 
     python -m report.snapshot --profile paper [--results results/paper] [--out docs/results/paper]
 
@@ -57,7 +59,21 @@ def largest(*folders, k: int = 8) -> list:
     return sorted(files, key=lambda p: -p.stat().st_size)[:k]
 
 
-def snapshot(profile: str, results, out) -> Path:
+def folders(d: Path) -> list:
+    """The target folders of a snapshot or results folder that hold files (its report excepted)."""
+    return sorted(p.name for p in Path(d).iterdir() if p.is_dir() and p.name != "report"
+                  and any(f.is_file() for f in p.rglob("*"))) if Path(d).is_dir() else []
+
+
+def dropped(groups) -> list:
+    """The folders a snapshot already holds (dst) whose results (src) have none: what it would lose."""
+    have = {src: set(folders(src)) for src, _ in groups}
+    return [f"{dst.name}/{n}" for src, dst in groups for n in folders(dst) if n not in have[src]]
+
+
+def snapshot(profile: str, results, out, drop: bool = False) -> Path:
+    """Replace the snapshot in `out` by the finished report of `results`; refuses (RuntimeError, naming
+    them) to drop a folder the snapshot holds and the results lack, unless `drop`."""
     results, out = Path(results).resolve(), Path(out).resolve()
     page = results / "report" / "index.html"
     if not page.exists():
@@ -72,6 +88,11 @@ def snapshot(profile: str, results, out) -> Path:
         dst = out.parent / t.profile if t.fallback else out
         profiles[dst] = t.profile
         groups.setdefault((src, dst), []).extend(entries[t.name].get("figures") or [])
+    lost = [] if drop else dropped(groups)
+    if lost:
+        raise RuntimeError(f"the results have no {', '.join(lost)}, which the snapshot in {out.parent} holds: "
+                           f"`make restore PROFILE={profile}` first keeps them (then `make report`), "
+                           f"or DROP=1 drops them")
     for _, dst in groups:
         if dst.exists():
             shutil.rmtree(dst)
@@ -98,9 +119,10 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", default="paper")
     ap.add_argument("--results", default=None)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--drop", action="store_true", help="allow the new snapshot to lack targets the old one holds")
     a = ap.parse_args(argv)
     try:
-        snapshot(a.profile, a.results or f"results/{a.profile}", a.out or f"docs/results/{a.profile}")
+        snapshot(a.profile, a.results or f"results/{a.profile}", a.out or f"docs/results/{a.profile}", a.drop)
     except (FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

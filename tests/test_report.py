@@ -5,6 +5,7 @@ time plan), `make snapshot`, the README tables from a snapshot, and the run-fold
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -241,6 +242,32 @@ def test_snapshot_leaves_out_the_records_of_an_experiment_still_running(tmp_path
     (src / "done" / "metrics.csv").write_text("x\n1\n")
     assert snapshot.copy_results(src, dst, []) == 2  # the table and the finished experiment's record
     assert (dst / "done" / "a" / "record.json").exists() and not (dst / "running").exists()
+
+
+def test_snapshot_refuses_to_drop_a_target_until_restore_seeds_it_from_the_committed_one(smoke, tmp_path):
+    """A fresh clone (results/ without a target the committed snapshot holds) cannot wipe that target by
+    `make snapshot`: it refuses naming it; `make restore` copies the snapshot's folder back (never over a
+    folder run here), the report's provenance names what was restored, and the snapshot then keeps it."""
+    from report import build, model, provenance, restore
+
+    out = snapshot.snapshot("smoke", smoke, tmp_path / "docs" / "smoke")
+    fresh = tmp_path / "results" / "smoke"
+    shutil.copytree(smoke, fresh, ignore=shutil.ignore_patterns("fig10", "report"))
+    (fresh / "heat_validation" / "heat_validation.png").unlink()  # a folder run here: never mixed with the snapshot's
+    build.write(model.build(fresh, "smoke"), fresh / "report")
+    with pytest.raises(RuntimeError, match=r"results have no smoke/fig10, .*make restore PROFILE=smoke"):
+        snapshot.snapshot("smoke", fresh, out)
+    assert (out / "fig10" / "metrics.csv").exists()  # the refusal touched nothing
+    assert restore.restore_one(out, fresh) == ["fig10"]
+    assert restore.restore_one(out, fresh) == []  # nothing twice
+    assert not (fresh / "heat_validation" / "heat_validation.png").exists()
+    assert (fresh / "fig10" / "metrics.csv").read_bytes() == (out / "fig10" / "metrics.csv").read_bytes()
+    assert not (fresh / "report" / provenance.FILE).read_text().count("restored")
+    build.write(model.build(fresh, "smoke"), fresh / "report")
+    assert "fig10: from the snapshot of" in (fresh / "report" / provenance.FILE).read_text()
+    snapshot.snapshot("smoke", fresh, out)
+    assert [t.name for t in model.build(out, "smoke").targets if t.run] == list(RUN_TARGETS)
+    assert "restored from snapshot" in json.loads((out / provenance.FILE).read_text())
 
 
 def test_readme_tables_regenerate_the_fixture_readme_unchanged(tmp_path):
