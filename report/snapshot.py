@@ -10,7 +10,8 @@ What is copied, keeping the paths below results/<profile>/: the figures named in
 docs/paper_values.yaml (as palette PNGs at most 1400 px wide), every csv / md table of a target
 folder (results/<profile>/<folder>/*.{csv,md}), every record.json (any depth) below a folder that
 has such a table (an experiment still running, e.g. the atlas's sweep before it gathers, has none:
-its records would be a partial set) and the report's provenance.json. Targets shown from a fallback profile (Table 1 / Fig. 3 from `cpu`) are copied
+its records would be a partial set), the SitL runs' training, evaluation and dataset records
+(`sitl_records`: enough for `make restore` to bring a finished training back as current) and the report's provenance.json. Targets shown from a fallback profile (Table 1 / Fig. 3 from `cpu`) are copied
 into docs/results/<fallback>/ the same way. The report is then rebuilt from the copy, so that each
 number on the snapshot's page traces to a file of the snapshot."""
 import argparse
@@ -42,12 +43,38 @@ def copy_results(src: Path, dst: Path, figure_paths) -> int:
             continue  # an experiment still running (no table written yet): its records are partial
         _copy(f, dst / f.relative_to(src))
         n += 1
+    for f in sitl_records(src):
+        _copy(f, dst / f.relative_to(src))
+        n += 1
     for rel in figure_paths:
         f = src / rel
         if f.exists():
             figures.compress_png(f, dst / rel) if f.suffix == ".png" else _copy(f, dst / rel)
             n += 1
     return n
+
+
+SITL_RECORDS = ("train.json", "generate.json", "budget.json", "authors_force.json")
+
+
+def sitl_records(src: Path) -> list:
+    """The SitL runs' own records, so that a restored run is current without its checkpoint
+    (sitl/study.py `stored_row`): each training's train.json, each evaluation's metrics/<model>.json,
+    each dataset's generate.json / metadata.json, the equal-cost budget, the authors'-force result;
+    below sitl/ (Table 1's runs, once Table 1 or the study has written its table) and sitl_study/,
+    never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out."""
+    import os
+
+    if not (any((src / "table1").glob("*.csv")) or any((src / "sitl_study").glob("*.csv"))):
+        return []
+    out = []
+    for top in ("sitl", "sitl_study"):
+        for root, _, names in os.walk(src / top):  # os.walk does not follow links to folders
+            for name in names:
+                if name in SITL_RECORDS or (Path(root).name == "metrics" and name.endswith(".json")) \
+                        or (name == "metadata.json" and "generate.json" in names):
+                    out.append(Path(root) / name)
+    return sorted(out)
 
 
 def size_mb(*folders) -> float:

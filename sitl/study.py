@@ -208,8 +208,10 @@ def locate(profile: str, exp: S.Experiment, results, run: Run, extra: dict = Non
 
 
 def stored_row(profile: str, exp: S.Experiment, results, run: Run):
-    """The row of a run that `--only` did not select, when it is finished and current (nothing is
-    trained, evaluated or generated here), else None: the table always shows every current run."""
+    """The row of a run when it is finished and current (nothing is trained, evaluated or generated
+    here), else None: the table always shows every current run, and a current run is not made again.
+    Its records suffice (train.json, the metrics json, the dataset's generate.json / metadata.json):
+    a run restored from the committed snapshot (`make restore`, without checkpoints) is current."""
     from sitl import evaluate, train
 
     own = study_dir(results) / "runs" / run.name
@@ -218,7 +220,8 @@ def stored_row(profile: str, exp: S.Experiment, results, run: Run):
         try:
             done = json.loads(side.read_text())
             afexp = S.authors_force_experiment(run_experiment(profile, exp, run))
-            return {"run": run, "authors_force": done} if done.get("key") == authors_force_key(afexp, own) else None
+            return {"run": run, "authors_force": done, "stored": True} \
+                if done.get("key") == authors_force_key(afexp, own) else None
         except (OSError, ValueError):
             return None
     budget = own / "budget.json"
@@ -236,7 +239,7 @@ def stored_row(profile: str, exp: S.Experiment, results, run: Run):
     if met is None:
         return None
     return {"run": run, "exp": rexp, "folder": str(folder), "shared": folder == Path(results), "train": rec,
-            "metrics": met}
+            "metrics": met, "stored": True}
 
 
 def make_run(profile: str, exp: S.Experiment, results, run: Run) -> dict:
@@ -498,7 +501,9 @@ def run(profile: str, results, only=None) -> list:
             # one process per run: `make sitl-study ONLY=a` and `ONLY=b` may run at once (a second
             # process wanting the same run waits, then finds it done)
             with folder_lock(study_dir(results) / "runs" / r.name):
-                rows[r.name] = make_run(profile, exp, results, r)
+                rows[r.name] = stored_row(profile, exp, results, r) or make_run(profile, exp, results, r)
+                if rows[r.name].get("stored"):
+                    print(f"study: {r.name}: up to date (its training and evaluation records)", flush=True)
     out = study_dir(results)
     with folder_lock(out):  # the table of one process at a time, from every run finished by then
         return write_outputs(profile, exp, results, plan, rows, out)

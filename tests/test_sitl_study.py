@@ -153,6 +153,38 @@ def test_only_runs_a_subset_and_the_table_keeps_every_current_run(study):
         assert again[name]["mse20"] == r["mse20"], name
 
 
+def test_a_study_restored_from_its_snapshot_records_is_current_without_checkpoints(study, tmp_path):
+    """A machine whose results/ is lost keeps the study: the snapshot holds each run's training,
+    evaluation and dataset records (report/snapshot.sitl_records; no checkpoint, rollout or data
+    file), `make restore` puts them back, and with the dataset generated again (here: its files
+    copied) every run is current: make sitl-study trains and evaluates nothing and tables the same
+    numbers."""
+    import re
+
+    from report import restore, snapshot
+
+    results, rows, _, _ = study
+    snap = tmp_path / "snap"
+    snapshot.copy_results(results, snap, [])
+    assert list(snap.rglob("train.json")) and list(snap.rglob("budget.json"))
+    assert not [p for p in snap.rglob("*") if p.suffix in (".pkl", ".h5", ".png")], "only records"
+    fresh = tmp_path / "fresh"
+    assert {"sitl", "sitl_study"} <= set(restore.restore_one(snap, fresh))
+    for f in S.data_dir(results).iterdir():
+        if not (S.data_dir(fresh) / f.name).exists():
+            shutil.copyfile(f, S.data_dir(fresh) / f.name)
+    proc, _ = _make(fresh)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "from scratch" not in proc.stdout and "resuming" not in proc.stdout, proc.stdout[-3000:]
+    assert not re.search(r"^evaluate \w+:", proc.stdout, re.M), proc.stdout[-3000:]
+    assert proc.stdout.count("up to date (its training and evaluation records)") >= 7, proc.stdout[-3000:]
+    with (fresh / "sitl_study" / "study.csv").open() as f:
+        again = {r["name"]: r for r in csv.DictReader(f)}
+    assert set(again) == set(rows)
+    for name, r in rows.items():
+        assert (again[name]["mse20"], again[name]["ratio_mse20"]) == (r["mse20"], r["ratio_mse20"]), name
+
+
 def test_a_run_held_by_another_process_is_waited_for_and_not_made_twice(study):
     """`make sitl-study ONLY=a` and `ONLY=b` may run at once: each run is made under a lock on its
     folder (sph.harness.lock), so a second process wanting the same run waits for the first and then
