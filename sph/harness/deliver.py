@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Optional
 
 from .stamp import file_digest, run_command
+from .atomic import write_text
 
 ENV = "SPH_DELIVERABLE_INPUTS"
 """The file a deliverable's script appends the inputs it read to (set by `main`)."""
@@ -112,10 +113,7 @@ def make(outputs, inputs, command) -> int:
         return 1
     record = {"command": list(command), "inputs": {**read, **before}, "outputs": _digests(outputs)}
     path = manifest_path(outputs)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
-    tmp.replace(path)
+    write_text(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
     return 0
 
 

@@ -283,11 +283,9 @@ def read_metadata(path) -> Optional[dict]:
 
 def write_metadata(path, metadata: dict):
     """Write `metadata` as indented JSON (atomically: temp file, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(metadata, indent=2, default=_json_default) + "\n")
-    tmp.replace(path)
+    from .atomic import write_text
+
+    write_text(path, json.dumps(metadata, indent=2, default=_json_default) + "\n")
 
 
 def _json_default(x):

@@ -21,7 +21,7 @@ from typing import Iterable, Optional
 SPH_ROOT = Path(__file__).resolve().parents[1]
 
 NUMBER_NEUTRAL = frozenset({
-    "sph.harness", "sph.harness.animate", "sph.harness.cli", "sph.harness.configtools", "sph.harness.io",
+    "sph.harness", "sph.harness.animate", "sph.harness.atomic", "sph.harness.cli", "sph.harness.configtools", "sph.harness.io",
     "sph.harness.keys", "sph.harness.layout", "sph.harness.other_load", "sph.harness.record", "sph.harness.runs",
     "sph.harness.stamp",
     "sph.harness.tables", "sph.harness.xdmf", "sph.harness.xla_cpu", "sph.harness.deliver", "sph.harness.figures"})

@@ -28,6 +28,8 @@ import tempfile
 from pathlib import Path
 from typing import Optional
 
+from .atomic import write_text
+
 SMALL = 8 << 20
 ENV = "SPH_STAMP_OUTPUTS"
 """The file a stamped step's processes append their current outputs to (set by `main`)."""
@@ -112,10 +114,7 @@ def update(stamp, folder, noted=()) -> bool:
     old = read(stamp)
     if old is not None and old.get("digest") == new["digest"]:
         return False
-    stamp.parent.mkdir(parents=True, exist_ok=True)
-    tmp = stamp.with_name(stamp.name + ".tmp")
-    tmp.write_text(json.dumps(new, indent=1, sort_keys=True) + "\n")
-    tmp.replace(stamp)
+    write_text(stamp, json.dumps(new, indent=1, sort_keys=True) + "\n")
     return True
 
 

@@ -4,6 +4,7 @@ the file."""
 from pathlib import Path
 from typing import Optional
 
+from .atomic import write_text
 from .deliver import note_input
 from .io import MissingOutput, OutputError
 from .stamp import note_current
@@ -23,10 +24,7 @@ def write_table(path, rows: list, sort: Optional[list] = None, ascending=True):
         return df
     if sort:
         df = df.sort_values(sort, ascending=ascending, ignore_index=True)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    df.to_csv(tmp, index=False)
-    tmp.replace(path)
+    write_text(path, df.to_csv(index=False))
     return df
 
 

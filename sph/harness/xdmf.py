@@ -13,6 +13,8 @@ from xml.sax.saxutils import quoteattr
 
 import h5py
 
+from .atomic import write_text
+
 _VECTOR = ("velocity", "momentum_velocity")
 
 
@@ -69,9 +71,7 @@ def write_sidecar(h5_path, traj: str = "00000") -> Path:
     """Write `<h5_path without .h5>.xdmf` beside the trajectory file; returns its path."""
     h5_path = Path(h5_path)
     out = h5_path.with_suffix(".xdmf")
-    tmp = out.with_suffix(".xdmf.tmp")
-    tmp.write_text(sidecar_text(h5_path, traj))
-    tmp.replace(out)
+    write_text(out, sidecar_text(h5_path, traj))
     return out
 
 
