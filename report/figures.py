@@ -5,12 +5,17 @@ from pathlib import Path
 
 
 def compress_png(src, dst, max_width: int = 1400, colors: int = 256) -> Path:
-    """A smaller PNG of `src`: at most `max_width` pixels wide, palette-quantized."""
+    """A smaller PNG of `src`: at most `max_width` pixels wide, palette-quantized. One that already is
+    (a figure restored from a snapshot, `make restore`) is copied byte for byte: quantizing again
+    would change every committed figure's bytes, and a little of its colour, for nothing."""
     from PIL import Image
 
     dst = Path(dst)
     dst.parent.mkdir(parents=True, exist_ok=True)
     with Image.open(src) as im:
+        if im.mode == "P" and im.width <= max_width:
+            shutil.copyfile(src, dst)
+            return dst
         im = im.convert("RGB")
         if im.width > max_width:
             im = im.resize((max_width, round(im.height * max_width / im.width)), Image.LANCZOS)

@@ -232,6 +232,17 @@ def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path):
         assert text == shown(tr, text)
 
 
+def test_a_snapshot_figure_compressed_again_keeps_its_bytes(tmp_path):
+    """A figure restored from a snapshot (already a palette PNG) goes into the next snapshot unchanged:
+    quantizing it again would rewrite every committed figure for nothing."""
+    from report import figures
+
+    src = next((FIXTURES / "snapshot" / "paper").rglob("*.png"))
+    once = figures.compress_png(src, tmp_path / "once.png")
+    twice = figures.compress_png(once, tmp_path / "twice.png")
+    assert twice.read_bytes() == once.read_bytes()
+
+
 def test_snapshot_leaves_out_the_records_of_an_experiment_still_running(tmp_path):
     """Records are copied from a results folder only once its experiment wrote its table: a sweep in
     progress (records, no runs.csv yet) would hand over a partial set the report calls not run."""
