@@ -19,10 +19,11 @@ import shutil
 import sys
 from pathlib import Path
 
-from . import paper, provenance
+from sph.harness.atomic import write_text
+
+from . import paper, provenance, snapshot
 
 FILE = provenance.RESTORED
-SKIP = {"report"}  # rebuilt by make report, never restored
 
 
 def fallbacks(profile: str) -> list:
@@ -31,28 +32,22 @@ def fallbacks(profile: str) -> list:
                    if p == profile})
 
 
-def _empty(folder: Path) -> bool:
-    return not folder.exists() or not any(p.is_file() for p in folder.rglob("*"))
-
-
 def restore_one(snap: Path, results: Path) -> list:
     """Copy each target folder of `snap` into `results` where `results` has none; returns the names copied."""
     snap, results = Path(snap), Path(results)
     if not snap.is_dir():
         raise FileNotFoundError(f"{snap}: no committed snapshot to restore from")
-    copied = []
-    for d in sorted(p for p in snap.iterdir() if p.is_dir() and p.name not in SKIP):
-        if _empty(results / d.name):
-            shutil.copytree(d, results / d.name, dirs_exist_ok=True)
-            copied.append(d.name)
+    have = set(snapshot.folders(results))
+    copied = [name for name in snapshot.folders(snap) if name not in have]
+    for name in copied:
+        shutil.copytree(snap / name, results / name, dirs_exist_ok=True)
     if copied:
         prov = json.loads((snap / provenance.FILE).read_text()) if (snap / provenance.FILE).exists() else {}
         note = results / FILE
         old = json.loads(note.read_text()) if note.exists() else {}
-        folders = sorted(set(old.get("folders", [])) | set(copied))
-        note.write_text(json.dumps({"snapshot": str(snap), "commit": prov.get("snapshot_commit", prov.get("commit", "?")),
-                                    "date": prov.get("snapshot_date", prov.get("date", "?")), "folders": folders},
-                                   indent=2) + "\n")
+        write_text(note, json.dumps({"snapshot": str(snap), "commit": prov.get("snapshot_commit", prov.get("commit", "?")),
+                                     "date": prov.get("snapshot_date", prov.get("date", "?")),
+                                     "folders": sorted(set(old.get("folders", [])) | set(copied))}, indent=2) + "\n")
     return copied
 
 

@@ -17,6 +17,7 @@ number on the snapshot's page traces to a file of the snapshot."""
 import argparse
 import datetime
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -63,8 +64,6 @@ def sitl_records(src: Path) -> list:
     each dataset's generate.json / metadata.json, the equal-cost budget, the authors'-force result;
     below sitl/ (Table 1's runs, once Table 1 or the study has written its table) and sitl_study/,
     never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out."""
-    import os
-
     if not (any((src / "table1").glob("*.csv")) or any((src / "sitl_study").glob("*.csv"))):
         return []
     out = []
@@ -87,7 +86,8 @@ def largest(*folders, k: int = 8) -> list:
 
 
 def folders(d: Path) -> list:
-    """The target folders of a snapshot or results folder that hold files (its report excepted)."""
+    """The target folders of a snapshot or results folder that hold files (its report excepted: it is
+    rebuilt, never restored or compared)."""
     return sorted(p.name for p in Path(d).iterdir() if p.is_dir() and p.name != "report"
                   and any(f.is_file() for f in p.rglob("*"))) if Path(d).is_dir() else []
 

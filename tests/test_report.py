@@ -322,7 +322,6 @@ def test_readme_tables_unknown_marker_or_missing_source_is_an_error(tmp_path):
 
 
 def test_a_table_whose_target_is_not_in_the_snapshot_says_so_and_table1_falls_back_to_cpu(tmp_path):
-    import shutil
     snap, cpu = tmp_path / "paper", tmp_path / "cpu"
     shutil.copytree(FIXTURES / "snapshot" / "paper" / "fig5", snap / "fig5")
     shutil.copytree(FIXTURES / "snapshot" / "paper" / "table1", cpu / "table1")
@@ -358,7 +357,6 @@ def test_experiment_tables_show_the_records_cells(tmp_path):
     show the snapshot's own cells, read here independently with the csv module; a figure missing
     from the snapshot is named, never filled in."""
     import csv
-    import shutil
 
     snap = FIXTURES / "snapshot" / "paper"
     text = "".join(f"<!-- table:{n} -->\n<!-- /table:{n} -->\n" for n in ("cavity", "dambreak", "heat", "gradients"))
