@@ -109,12 +109,13 @@ class Interleaved(H5Dataset):
 
 
 def datasets(exp: S.Experiment, path: Path):
-    """(train, valid, test) datasets: training windows of input_seq_length + 1 frames (no
-    pushforward); valid / test cut into windows of input_seq_length + n_rollout_steps frames, ordered
-    round-robin over the seeds (`Interleaved`)."""
+    """(train, valid, test) datasets: training windows of input_seq_length + 1 frames, plus the
+    longest pushforward unroll (as LagrangeBench's runner: train.max_unroll, 0 without pushforward);
+    valid / test cut into windows of input_seq_length + n_rollout_steps frames, ordered round-robin
+    over the seeds (`Interleaved`)."""
     isl, n = exp.model.input_seq_length, exp.eval.n_rollout_steps
     kw = dict(dataset_path=str(path), name="rpf2d", input_seq_length=isl)
-    return (H5Dataset("train", extra_seq_length=0, **kw), Interleaved("valid", extra_seq_length=n, **kw),
+    return (H5Dataset("train", extra_seq_length=exp.train.max_unroll, **kw), Interleaved("valid", extra_seq_length=n, **kw),
             Interleaved("test", extra_seq_length=n, **kw))
 
 

@@ -5,7 +5,8 @@ L substeps per frame (M = write_every / L), step by step on the study's test win
 non-finite, while the solver alone at the same L may stay finite and still be far off. This script
 tells the two apart, on the same windows and with the same LagrangeBench case and model as
 sitl/evaluate.py, for the solver alone and for SitL's best checkpoint (the one evaluated) and its
-last one (the most trained):
+last one (the most trained), and, when the study trained one at that L (study.pushforward, beyond
+the paper), SitL trained with pushforward (best and last checkpoint):
 
 - the position MSE at every rollout step (LagrangeBench's: the mean squared periodic displacement
   from the ground truth over particles and coordinates), beside particles frozen at the last input
@@ -115,7 +116,9 @@ class Roller:
 
 def located(profile: str, exp: S.Experiment, results, substeps: int) -> dict:
     """{"solver": (experiment, folder), "sitl": (experiment, folder, its training record)} of the
-    study's runs at `substeps`; an error naming the run when one is not in the study or not trained."""
+    study's runs at `substeps`, plus "sitl_pushforward" (the same) when the study has a finished
+    pushforward run there; an error naming the run when solver or SitL is not in the study or not
+    trained."""
     by_name = {r.name: r for r in study.runs(exp)}
     out = {}
     for kind in ("solver", "sitl"):
@@ -124,33 +127,53 @@ def located(profile: str, exp: S.Experiment, results, substeps: int) -> dict:
             raise KeyError(f"--substeps {substeps}: the study of profile {profile} has no run {name} "
                            f"(its coarse runs: study.substeps {list(exp.study.substeps)}, "
                            f"not model.substeps {exp.model.substeps})")
-        rexp, folder = study.locate(profile, exp, results, by_name[name])
-        out[kind] = (rexp, folder)
-    ckp = S.ckpt_dir(out["sitl"][1], "sitl")
-    rec = (ckp / "train.json").read_text() if (ckp / "train.json").exists() else "{}"
-    if not json.loads(rec).get("complete"):
-        raise FileNotFoundError(f"{ckp}: no finished training of sitl_L{substeps}; run "
-                                f"`make sitl-study PROFILE={profile} ONLY=sitl_L{substeps}` first")
-    out["sitl"] += (rec,)
+        out[kind] = study.locate(profile, exp, results, by_name[name])
+    out["sitl"] += (_finished(out["sitl"][1], f"sitl_L{substeps}", profile, required=True),)
+    pf = by_name.get(f"sitl_L{substeps}_pushforward")
+    if pf is not None:
+        rexp, folder = study.locate(profile, exp, results, pf)
+        rec = _finished(folder, pf.name, profile, required=False)
+        if rec is not None:
+            out["sitl_pushforward"] = (rexp, folder, rec)
     return out
+
+
+def _finished(folder: Path, name: str, profile: str, required: bool):
+    """The training record (text) of a finished SitL run, else an error (`required`) or None."""
+    ckp = S.ckpt_dir(folder, "sitl")
+    rec = (ckp / "train.json").read_text() if (ckp / "train.json").exists() else "{}"
+    if json.loads(rec).get("complete"):
+        return rec
+    msg = f"{ckp}: no finished training of {name}; run `make sitl-study PROFILE={profile} ONLY={name}` first"
+    if required:
+        raise FileNotFoundError(msg)
+    print(f"divergence: {msg} (diagnosed without it)", flush=True)
+    return None
 
 
 def inputs_key(runs: dict, results, windows) -> str:
     """What a diagnosis depends on: the dataset's record, both runs' settings, SitL's training
     record (its checkpoints), the window count and the code (module docstring)."""
     data = (S.data_dir(results) / "generate.json").read_text()
-    return digest({"data": data, "solver": to_mapping(runs["solver"][0]), "sitl": to_mapping(runs["sitl"][0]),
-                   "train": runs["sitl"][2], "windows": windows, "code": files_digest(CODE)})
+    key = {"data": data, "solver": to_mapping(runs["solver"][0]), "sitl": to_mapping(runs["sitl"][0]),
+           "train": runs["sitl"][2], "windows": windows, "code": files_digest(CODE)}
+    if "sitl_pushforward" in runs:
+        key["pushforward"] = (to_mapping(runs["sitl_pushforward"][0]), runs["sitl_pushforward"][2])
+    return digest(key)
 
 
 def models(runs: dict) -> dict:
-    """{label: Roller} for the solver alone and SitL's best and last checkpoints."""
+    """{label: Roller} for the solver alone and SitL's best and last checkpoints (and those of SitL
+    with pushforward, when trained)."""
     sexp, sfolder = runs["solver"]
-    rexp, folder, _ = runs["sitl"]
-    ckp = S.ckpt_dir(folder, "sitl")
-    return {"solver alone": Roller(sexp, sfolder, "solver"),
-            "SitL, best checkpoint": Roller(rexp, folder, "sitl", ckp / "best"),
-            "SitL, last checkpoint": Roller(rexp, folder, "sitl", ckp)}
+    out = {"solver alone": Roller(sexp, sfolder, "solver")}
+    for key, name in (("sitl", "SitL"), ("sitl_pushforward", "SitL with pushforward")):
+        if key in runs:
+            rexp, folder, _ = runs[key]
+            ckp = S.ckpt_dir(folder, "sitl")
+            out[f"{name}, best checkpoint"] = Roller(rexp, folder, "sitl", ckp / "best")
+            out[f"{name}, last checkpoint"] = Roller(rexp, folder, "sitl", ckp)
+    return out
 
 
 def diagnose(runs: dict, exp: S.Experiment, windows: int = None):

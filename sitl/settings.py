@@ -126,9 +126,24 @@ class Model:
         require(self.capacity_multiplier >= 1, "model.capacity_multiplier", "must be >= 1")
 
 
+def check_pushforward(steps, unrolls, probs, prefix: str):
+    """LagrangeBench's pushforward schedule (train/strats.py): one entry per stage in each list; the
+    first stage holds from step 0 (steps[0] < 0), stages start at increasing steps, unrolls >= 0, the
+    weights >= 0 and the first one > 0. `prefix` names the keys in the message (e.g. "train.pushforward_")."""
+    n = len(steps)
+    require(n >= 1 and len(unrolls) == n and len(probs) == n, f"{prefix}steps",
+            f"{prefix}steps, unrolls and probs need one entry each per stage, got {len(steps)}, {len(unrolls)}, "
+            f"{len(probs)}")
+    require(steps[0] < 0 and list(steps) == sorted(set(steps)), f"{prefix}steps",
+            f"must start below 0 (the first stage holds from step 0) and increase, got {list(steps)}")
+    require(all(u >= 0 for u in unrolls), f"{prefix}unrolls", f"must be >= 0, got {list(unrolls)}")
+    require(all(q >= 0 for q in probs) and probs[0] > 0, f"{prefix}probs",
+            f"must be >= 0, the first > 0, got {list(probs)}")
+
+
 @dataclass(frozen=True)
 class Train:
-    """LagrangeBench Trainer settings (no pushforward, as in the paper).
+    """LagrangeBench Trainer settings (no pushforward by default, as in the paper).
 
     step_max           training steps per model
     lr_start, lr_final, lr_decay_steps, lr_decay_rate   exponential decay (LagrangeBench's optax);
@@ -141,6 +156,12 @@ class Train:
     log_steps          print the training loss
     seed               model init, noise and data-loader seed
     dtype              precision of the networks and the in-model solver
+    pushforward_steps, pushforward_unrolls, pushforward_probs
+                       LagrangeBench's pushforward schedule (Brandstetter et al. 2022): from training
+                       step steps[i] on, a sample is first rolled out by one of unrolls[:i+1] model
+                       steps without gradient, drawn with weights probs[:i+1]. The paper trains without
+                       (App. B.2: steps [-1], unrolls [0], probs [1], the default); the study's
+                       pushforward runs use LagrangeBench's own schedule scaled to step_max
     """
 
     step_max: int = 1000
@@ -156,9 +177,14 @@ class Train:
     seed: int = 0
     dtype: str = "float32"
     num_workers: int = 0
+    pushforward_steps: tuple[int, ...] = (-1,)
+    pushforward_unrolls: tuple[int, ...] = (0,)
+    pushforward_probs: tuple[float, ...] = (1.0,)
 
     def __post_init__(self):
         require(self.step_max >= 1, "train.step_max", "must be >= 1")
+        check_pushforward(self.pushforward_steps, self.pushforward_unrolls, self.pushforward_probs,
+                          "train.pushforward_")
         require(0 < self.lr_final <= self.lr_start, "train.lr_final", "must be in (0, lr_start]")
         require(self.noise_std >= 0, "train.noise_std", "must be >= 0")
         require(self.sitl_noise_std >= 0, "train.sitl_noise_std", "must be >= 0")
@@ -170,6 +196,11 @@ class Train:
     def noise(self, kind: str) -> float:
         """The training noise of model `kind` (GNS: noise_std; SitL and the solver: sitl_noise_std)."""
         return self.noise_std if kind == "gns" else self.sitl_noise_std
+
+    @property
+    def max_unroll(self) -> int:
+        """The longest pushforward unroll: a training sample needs this many frames more."""
+        return max(self.pushforward_unrolls)
 
 
 @dataclass(frozen=True)
@@ -249,6 +280,10 @@ class Study:
     authors_force_data  keys over `data` for the dataset of the authors' force bug (their uniform
                      force against the per-particle one, solver only, no training): the paper's
                      resolution and frame interval on cpu / paper; {} = the profile's own dataset
+    pushforward      beyond the paper: {substeps: [L, ...], steps, unrolls, probs}: SitL at these L
+                     trained also with this pushforward schedule (train.pushforward_*), at the paper's
+                     noise; does training on its own rolled-out states keep the coarse solver stable?
+                     None: no such runs
     overrides        keys over the whole profile for every study run (smoke: tiny sizes); a run whose
                      settings equal the profile's (e.g. SitL at the paper's noise) is Table 1's own
     """
@@ -258,6 +293,7 @@ class Study:
     train_seeds: tuple[int, ...] = (1,)
     gns_equal_cost: bool = True
     authors_force_data: Any = None
+    pushforward: Any = None
     overrides: Any = None
 
     def __post_init__(self):
@@ -265,9 +301,17 @@ class Study:
             require(n >= 0, f"study.noise[{i}]", f"must be >= 0, got {n}")
         for i, n in enumerate(self.substeps):
             require(n >= 1, f"study.substeps[{i}]", f"must be >= 1, got {n}")
-        for key in ("authors_force_data", "overrides"):
+        for key in ("authors_force_data", "pushforward", "overrides"):
             v = getattr(self, key)
             require(v is None or isinstance(v, dict), f"study.{key}", f"must be a mapping, got {v!r}")
+        if self.pushforward is not None:
+            keys = {"substeps", "steps", "unrolls", "probs"}
+            require(set(self.pushforward) == keys, "study.pushforward",
+                    f"needs exactly the keys {sorted(keys)}, got {sorted(self.pushforward)}")
+            pf = self.pushforward
+            check_pushforward(pf["steps"], pf["unrolls"], pf["probs"], "study.pushforward.")
+            for i, n in enumerate(self.pushforward["substeps"]):
+                require(isinstance(n, int) and n >= 1, f"study.pushforward.substeps[{i}]", f"must be >= 1, got {n}")
 
 
 @dataclass(frozen=True)
@@ -300,6 +344,10 @@ class Experiment:
                     f"{[k for k in range(1, w + 1) if w % k == 0]}")
         for i, n in enumerate(self.study.substeps):
             require(w % n == 0, f"study.substeps[{i}]", f"L = {n} does not divide data.write_every = {w}")
+        for i, n in enumerate((self.study.pushforward or {}).get("substeps", ())):
+            require(n == self.model.substeps or n in self.study.substeps, f"study.pushforward.substeps[{i}]",
+                    f"L = {n} has no solver-alone run to compare with: use model.substeps "
+                    f"({self.model.substeps}) or one of study.substeps {list(self.study.substeps)}")
         if self.study.authors_force_data:
             from_mapping(Data, merge(to_mapping(self.data), self.study.authors_force_data), "study.authors_force_data")
 

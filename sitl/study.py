@@ -8,6 +8,10 @@ cached and resumable like Table 1's, gathered into one table and one figure:
   seed           SitL at the paper's settings with another training seed: spread between trainings
   coarse         where the solver alone fails: the solver and SitL at L = study.substeps substeps per
                  frame (M = write_every / L), SitL at the paper's noise
+  pushforward    beyond the paper: SitL at L = study.pushforward.substeps trained with LagrangeBench's
+                 pushforward (its schedule scaled to the step budget): first rolled out by its own
+                 model for up to a few steps without gradient, so it sees the states its rollout
+                 drifts into
   equal_cost     GNS trained for as many steps as cost what the reference SitL's training costs, both
                  models' seconds per step and per validation window timed side by side
                  (sitl/train_cost.py), validations included
@@ -79,6 +83,13 @@ def runs(exp: S.Experiment) -> list:
         out.append(Run(f"solver_L{n}", "solver", "coarse", f"solver only, L={n} (M={_g(w / n)})", sub))
         out.append(Run(f"sitl_L{n}", "sitl", "coarse", f"SitL, L={n} (M={_g(w / n)}), noise {_g(t.sitl_noise_std)}",
                        sub))
+    pf = st.pushforward or {}
+    for n in pf.get("substeps", ()):
+        sub = {"model": {"substeps": n}, "train": {"pushforward_steps": pf["steps"], "pushforward_unrolls": pf["unrolls"],
+                                                   "pushforward_probs": pf["probs"]}}
+        out.append(Run(f"sitl_L{n}_pushforward", "sitl", "pushforward",
+                       f"SitL, L={n} (M={_g(w / n)}), noise {_g(t.sitl_noise_std)}, pushforward up to "
+                       f"{max(pf['unrolls'])} unrolls (beyond the paper)", sub))
     if st.gns_equal_cost:
         out.append(Run("gns_equal_cost", "gns", "equal_cost", "GNS at SitL's training cost"))
     for n in st.noise:
@@ -451,10 +462,11 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
             title="SitL's training noise")
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=7)
-    # (b) temporal coarsening: the solver alone and SitL against M
-    for kind, marker, color, lab in (("solver", "o", "C0", "solver only"), ("sitl", "D", "C1", "SitL")):
-        pts = sorted([r for r in flat if r["kind"] == kind and r["group"] in ("reference", "coarse")],
-                     key=lambda r: r["M"])
+    # (b) temporal coarsening: the solver alone and SitL against M (and SitL with pushforward)
+    for kind, groups, marker, color, lab in (("solver", ("reference", "coarse"), "o", "C0", "solver only"),
+                                             ("sitl", ("reference", "coarse"), "D", "C1", "SitL"),
+                                             ("sitl", ("pushforward",), "^", "C3", "SitL with pushforward")):
+        pts = sorted([r for r in flat if r["kind"] == kind and r["group"] in groups], key=lambda r: r["M"])
         if not pts:
             continue
         ax2.plot([r["M"] for r in pts], [r["mse20"] if r["finite"] else top for r in pts], "-", color=color,

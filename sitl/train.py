@@ -1,6 +1,7 @@
 """Train GNS or SitL on the generated RPF 2D dataset with LagrangeBench's Trainer (paper App. B:
 10 message-passing layers, latent 64, 2 MLP layers, one input velocity, no pushforward, the best
-checkpoint by the 20-step validation MSE).
+checkpoint by the 20-step validation MSE). Pushforward (train.pushforward_*, beyond the paper) is
+passed to LagrangeBench's Trainer as its own schedule.
 
 Checkpoints go to results/<profile>/sitl/ckp/<model>/ (LagrangeBench's layout: the latest
 checkpoint there, the best in best/). A killed run continues from its latest checkpoint (written
@@ -33,7 +34,8 @@ def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
         "batch_size": 1, "step_max": t.step_max, "num_workers": t.num_workers, "noise_std": t.noise(kind),
         "optimizer": {"lr_start": t.lr_start, "lr_final": t.lr_final, "lr_decay_rate": t.lr_decay_rate,
                       "lr_decay_steps": t.lr_decay_steps},
-        "pushforward": {"steps": [-1], "unrolls": [0], "probs": [1]},
+        "pushforward": {"steps": list(t.pushforward_steps), "unrolls": list(t.pushforward_unrolls),
+                        "probs": list(t.pushforward_probs)},
         "loss_weight": {"acc": 1.0, "vel": 0.0, "pos": 0.0},
     }
     cfg_eval = {
@@ -101,7 +103,10 @@ def train(exp: S.Experiment, results, kind: str) -> dict:
     record.update(wall_s=record["wall_s"] + wall, complete=True, step_max=exp.train.step_max,
                   best_step=best["step"], best_val_mse20=best["loss"], noise_std=exp.train.noise(kind),
                   lr_start=exp.train.lr_start, seed=exp.train.seed, valid_windows=exp.train.eval_n_trajs,
-                  valid_seeds=seeds,
+                  pushforward={"steps": list(exp.train.pushforward_steps),
+                               "unrolls": list(exp.train.pushforward_unrolls),
+                               "probs": list(exp.train.pushforward_probs)},
+                  valid_seeds=seeds, train_samples=len(data_train),
                   s_per_step=wall / max(1, exp.train.step_max - step0),
                   files=integrity.digests(ckp, checkpoint_files()))
     note_input(*(ckp / n for n in record.get("files", {})))

@@ -128,3 +128,35 @@ def test_settings_are_the_papers():
         S.load("cpu", overrides={"train": {"eval_n_trajs": 60}})
     af = S.authors_force_experiment(S.load("cpu")).data
     assert (af.dx, af.dt * af.write_every) == (0.025, pytest.approx(0.01))   # the paper's resolution and interval
+
+
+# LagrangeBench 0.2.0's default pushforward schedule (lagrangebench/defaults.py) for its 500k steps
+LB_PUSHFORWARD = {"steps": [-1, 20000, 300000, 400000], "unrolls": [0, 1, 2, 3], "probs": [18, 2, 1, 1]}
+
+
+def test_pushforward_is_off_as_in_the_paper_and_a_study_row_of_its_own():
+    """The paper trains without pushforward (App. B.2): every profile's training has none (one stage,
+    no unroll). The study's pushforward runs use LagrangeBench's default schedule (paper profile) and
+    the same schedule scaled to the cpu profile's 3000 steps; a bad schedule names its key."""
+    for p in ("smoke", "cpu", "paper"):
+        t = S.load(p).train
+        assert (t.pushforward_steps, t.pushforward_unrolls, t.pushforward_probs) == ((-1,), (0,), (1.0,)), p
+        assert t.max_unroll == 0
+    paper, cpu = S.load("paper"), S.load("cpu")
+    assert {k: paper.study.pushforward[k] for k in LB_PUSHFORWARD} == LB_PUSHFORWARD
+    scale = cpu.train.step_max / 500_000
+    assert cpu.study.pushforward["steps"][1:] == [round(s * scale) for s in LB_PUSHFORWARD["steps"][1:]]
+    assert cpu.study.pushforward["unrolls"] == LB_PUSHFORWARD["unrolls"]
+    assert cpu.study.pushforward["substeps"] == [2]            # where the solver alone blows up (M = 10)
+    run = S.load("cpu", overrides={"model": {"substeps": 2}, "train": {
+        "pushforward_steps": [-1, 120], "pushforward_unrolls": [0, 3], "pushforward_probs": [1, 1]}}).train
+    assert run.max_unroll == 3 and run.pushforward_steps == (-1, 120)
+    with pytest.raises(sph.ConfigError, match=r"train\.pushforward_steps: .*got 2, 1, 2"):
+        S.load("cpu", overrides={"train": {"pushforward_steps": [-1, 5], "pushforward_unrolls": [0],
+                                           "pushforward_probs": [1, 1]}})
+    with pytest.raises(sph.ConfigError, match=r"study\.pushforward\.steps: must start below 0"):
+        S.load("cpu", overrides={"study": {"pushforward": {"steps": [0, 5, 6, 7]}}})
+    with pytest.raises(sph.ConfigError, match=r"study\.pushforward\.unrolls: must be >= 0"):
+        S.load("cpu", overrides={"study": {"pushforward": {"unrolls": [0, -1, 2, 3]}}})
+    with pytest.raises(sph.ConfigError, match=r"study\.pushforward\.substeps\[0\]: L = 4 has no solver-alone run"):
+        S.load("cpu", overrides={"study": {"pushforward": {"substeps": [4]}}})

@@ -58,8 +58,8 @@ def study(tmp_path_factory):
 
 def test_every_run_is_made_and_tabled(study):
     results, rows, _, _ = study
-    assert set(rows) == {"solver_L3", "gns", "sitl", "solver_L1", "sitl_L1", "gns_equal_cost", "sitl_noise0.0003",
-                         "authors_force_per_particle", "authors_force_uniform", "frozen"}, sorted(rows)
+    assert set(rows) == {"solver_L3", "gns", "sitl", "solver_L1", "sitl_L1", "sitl_L1_pushforward", "gns_equal_cost",
+                         "sitl_noise0.0003", "authors_force_per_particle", "authors_force_uniform", "frozen"}, sorted(rows)
     out = results / "sitl_study"
     assert (out / "study.png").stat().st_size > 10_000
     md = (out / "study.md").read_text()
@@ -75,12 +75,23 @@ def test_runs_trained_with_their_own_settings(study):
     results, rows, _, _ = study
     runs = results / "sitl_study" / "runs"
     expect = {"sitl": ("sitl", 1e-5), "sitl_L1": ("sitl", 1e-5), "sitl_noise0.0003": ("sitl", 3e-4),
-              "gns": ("gns", 1e-3), "gns_equal_cost": ("gns", 1e-3)}
+              "gns": ("gns", 1e-3), "gns_equal_cost": ("gns", 1e-3), "sitl_L1_pushforward": ("sitl", 1e-5)}
     for name, (kind, noise) in expect.items():
         tr = json.loads((S.ckpt_dir(runs / name, kind) / "train.json").read_text())
         assert tr["complete"] and tr["noise_std"] == noise and tr["lr_start"] == 1e-3, (name, tr)
         assert float(rows[name]["noise_std"]) == noise
     assert rows["sitl_L1"]["L"] == "1" and float(rows["sitl_L1"]["M"]) == 10.0
+    # pushforward (beyond the paper) only where asked, with the smoke schedule; LagrangeBench's training
+    # windows grow by the longest unroll, so each seed's trajectory gives that many samples fewer
+    no_pf = {"steps": [-1], "unrolls": [0], "probs": [1.0]}
+    for name, (kind, _) in expect.items():
+        tr = json.loads((S.ckpt_dir(runs / name, kind) / "train.json").read_text())
+        want = {"steps": [-1, 0], "unrolls": [0, 1], "probs": [1.0, 1.0]} if name == "sitl_L1_pushforward" else no_pf
+        assert tr["pushforward"] == want, (name, tr["pushforward"])
+    samples = {n: json.loads((S.ckpt_dir(runs / n, "sitl") / "train.json").read_text())["train_samples"]
+               for n in ("sitl_L1", "sitl_L1_pushforward")}
+    assert samples["sitl_L1_pushforward"] == samples["sitl_L1"] - 1 * S.load("smoke").data.seeds, samples
+    assert rows["sitl_L1_pushforward"]["vs"] == "solver_L1" and rows["sitl_L1_pushforward"]["L"] == "1"
     # the linked dataset is the profile's own (one dataset, not a copy per run)
     assert S.data_dir(runs / "sitl").is_symlink()
     assert S.data_dir(runs / "sitl").resolve() == S.data_dir(results).resolve()
@@ -295,9 +306,11 @@ def test_divergence_steps_average_to_lagrangebenchs_own_metrics(study):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     out = results / "sitl_study"
     t = pd.read_csv(out / "divergence_L1.csv")
-    assert set(t["model"]) == {"solver alone", "SitL, best checkpoint", "SitL, last checkpoint"}
-    assert len(t) == 3 * 20 and (t["cause"] == "finite").all()   # smoke's M = 10 is still stable
-    for model, run in (("solver alone", "solver_L1"), ("SitL, best checkpoint", "sitl_L1")):
+    assert set(t["model"]) == {"solver alone", "SitL, best checkpoint", "SitL, last checkpoint",
+                               "SitL with pushforward, best checkpoint", "SitL with pushforward, last checkpoint"}
+    assert len(t) == 5 * 20 and (t["cause"] == "finite").all()   # smoke's M = 10 is still stable
+    for model, run in (("solver alone", "solver_L1"), ("SitL, best checkpoint", "sitl_L1"),
+                       ("SitL with pushforward, best checkpoint", "sitl_L1_pushforward")):
         mse = t[t["model"] == model].sort_values("step")["mse"].to_numpy()
         assert np.mean(mse[:5]) == pytest.approx(float(rows[run]["mse5"]), rel=2e-3), model
         assert np.mean(mse) == pytest.approx(float(rows[run]["mse20"]), rel=2e-3), model
