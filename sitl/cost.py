@@ -110,7 +110,8 @@ def _m(x: float) -> str:
 
 def points(exp: S.Experiment) -> list:
     """The fine solver, the solver alone at each configured M (and at SitL's substep), GNS, SitL, and
-    the study's coarse SitL (study.substeps: L substeps per frame, M = W / L)."""
+    the study's coarse SitL (study.substeps: L substeps per frame, M = W / L) and SitL with
+    pushforward (study.pushforward.substeps)."""
     w, lsitl = exp.data.write_every, exp.model.substeps
     out = [Point("fine", "fine", "fine solver", 1.0, w)]
     for m in sorted(exp.cost.coarsening):
@@ -123,6 +124,9 @@ def points(exp: S.Experiment) -> list:
     for n in exp.study.substeps:
         if n != lsitl:
             out.append(Point(f"sitl_L{n}", "sitl", f"SitL (L={n}, study)", w / n, n, study_run=f"sitl_L{n}"))
+    for n in (exp.study.pushforward or {}).get("substeps", ()):
+        out.append(Point(f"sitl_L{n}_pushforward", "sitl", f"SitL (L={n}, pushforward, study)", w / n, n,
+                         study_run=f"sitl_L{n}_pushforward"))
     return out
 
 
