@@ -63,12 +63,14 @@ def sitl_records(src: Path) -> list:
     (sitl/study.py `stored_row`): each training's train.json, each evaluation's metrics/<model>.json,
     each dataset's generate.json / metadata.json, the equal-cost budget, the authors'-force result;
     below sitl/ (Table 1's runs, once Table 1 or the study has written its table) and sitl_study/,
-    never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out."""
+    never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out, and so
+    do the set-aside folders of runs trained on other inputs or damaged (`<name>.stale-<n>`)."""
     if not (any((src / "table1").glob("*.csv")) or any((src / "sitl_study").glob("*.csv"))):
         return []
     out = []
     for top in ("sitl", "sitl_study"):
-        for root, _, names in os.walk(src / top):  # os.walk does not follow links to folders
+        for root, dirs, names in os.walk(src / top):  # os.walk does not follow links to folders
+            dirs[:] = [d for d in dirs if ".stale-" not in d]
             for name in names:
                 if name in SITL_RECORDS or (Path(root).name == "metrics" and name.endswith(".json")) \
                         or (name == "metadata.json" and "generate.json" in names):
