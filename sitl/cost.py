@@ -121,12 +121,13 @@ def points(exp: S.Experiment) -> list:
                          w / lsitl, lsitl))
     out.append(Point("gns", "gns", "GNS", float(w), None))
     out.append(Point("sitl", "sitl", f"SitL (L={lsitl})", w / lsitl, lsitl))
-    for n in exp.study.substeps:
-        if n != lsitl:
-            out.append(Point(f"sitl_L{n}", "sitl", f"SitL (L={n}, study)", w / n, n, study_run=f"sitl_L{n}"))
-    for n in (exp.study.pushforward or {}).get("substeps", ()):
-        out.append(Point(f"sitl_L{n}_pushforward", "sitl", f"SitL (L={n}, pushforward, study)", w / n, n,
-                         study_run=f"sitl_L{n}_pushforward"))
+    from sitl import study
+
+    for r in study.runs(exp):  # the study's own names: its coarse SitL, then SitL with pushforward
+        if r.kind == "sitl" and r.group in ("coarse", "pushforward"):
+            n = r.overrides["model"]["substeps"]
+            tag = ", pushforward" if r.group == "pushforward" else ""
+            out.append(Point(r.name, "sitl", f"SitL (L={n}{tag}, study)", w / n, n, study_run=r.name))
     return out
 
 
