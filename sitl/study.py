@@ -303,7 +303,7 @@ def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
                "lr_start": rexp.train.lr_start if run.kind != "solver" else None,
                "seed": rexp.train.seed if run.kind != "solver" else None,
                "train_steps": tr.get("step_max"), "train_wall_s": tr.get("wall_s"),
-               "s_per_step": tr.get("s_per_step"), "best_step": tr.get("best_step"),
+               "train_timed_from_step": timed_from_step(tr), "s_per_step": tr.get("s_per_step"), "best_step": tr.get("best_step"),
                **{k: m.get(k) for k in ("mse5", "mse20", "e_kin", "sinkhorn")},
                "mse20_lo": m["ci_mse20"][0], "mse20_hi": m["ci_mse20"][1], "n_windows": m["n_rollouts"],
                "finite": m["finite"], "blew_up": blew_up(m.get("e_kin"), frozen_e_kin),
@@ -357,9 +357,26 @@ def blew_up(e_kin, frozen_e_kin) -> bool:
 
 
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
-           "train_wall_s", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
+           "train_wall_s", "train_timed_from_step", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
            "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict",
            "shared_with_table1", "folder"]
+
+
+def timed_from_step(train: dict):
+    """The first training step that train.json's wall time covers: 0 when every segment was timed; a
+    later step when a killed segment left no time behind (train.py times a segment when it ends), so
+    the wall time is of the steps from there on only. None for a run that was never trained."""
+    segments = train.get("segments") or []
+    return min(s["from_step"] for s in segments) if segments else None
+
+
+def _train_cell(r: dict) -> str:
+    """'steps (wall s)', with the steps the wall time covers when it is not all of them."""
+    if r["kind"] not in ("gns", "sitl"):
+        return ""
+    first = r.get("train_timed_from_step")
+    part = f" for steps {first}-{r['train_steps']}" if first else ""
+    return f"{r['train_steps']} ({_f(r['train_wall_s'])}{part})"
 
 
 def _f(x) -> str:
@@ -392,7 +409,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
     for r in flat:
         if r["group"] == "authors_force":
             continue
-        tr = f"{r['train_steps']} ({_f(r['train_wall_s'])})" if r["kind"] in ("gns", "sitl") else ""
+        tr = _train_cell(r)
         vs = "" if r.get("vs") is None else f"{_f(r['ratio_mse20'])} [{_f(r['ratio_lo'])}, {_f(r['ratio_hi'])}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_f(r.get('noise_std'))} | {tr} | {_f(r['mse5'])} | {mse20} | "

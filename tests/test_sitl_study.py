@@ -269,6 +269,21 @@ def test_blown_up_is_a_kinetic_energy_error_above_no_motion():
     assert not blew_up(math.nan, 1.3) and not blew_up(None, 1.3) and not blew_up(2.0, None)
 
 
+def test_a_training_resumed_after_a_kill_says_which_steps_its_wall_time_covers():
+    from sitl.study import _train_cell, timed_from_step
+
+    # train.py times a segment when it ends: a killed first segment (cpu sitl_L1, stopped at its
+    # step-1500 checkpoint) leaves only the resumed one's time in train.json
+    resumed = {"step_max": 3000, "wall_s": 1099.4, "segments": [{"from_step": 1500, "to_step": 3000, "wall_s": 1099.4}]}
+    whole = {"step_max": 3000, "wall_s": 5800.0, "segments": [{"from_step": 0, "to_step": 3000, "wall_s": 5800.0}]}
+    assert timed_from_step(resumed) == 1500 and timed_from_step(whole) == 0 and timed_from_step({}) is None
+    row = {"kind": "sitl", "train_steps": 3000}
+    assert _train_cell({**row, "train_wall_s": 1099.4, "train_timed_from_step": 1500}) == \
+        "3000 (1.1e+03 for steps 1500-3000)"
+    assert _train_cell({**row, "train_wall_s": 5800.0, "train_timed_from_step": 0}) == "3000 (5.8e+03)"
+    assert _train_cell({"kind": "solver"}) == ""
+
+
 def test_frozen_particles_scale_from_the_test_file_itself(study):
     """The baseline row recomputed with h5py from test.h5 (smoke: one seed, the first window = frames
     0..21, 2 input frames): the mean squared periodic displacement from the last input frame, per
