@@ -64,7 +64,9 @@ def sitl_records(src: Path) -> list:
     each dataset's generate.json / metadata.json, the equal-cost budget, the authors'-force result;
     below sitl/ (Table 1's runs, once Table 1 or the study has written its table) and sitl_study/,
     never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out, and so
-    do the set-aside folders of runs trained on other inputs or damaged (`<name>.stale-<n>`)."""
+    do the set-aside folders of runs trained on other inputs or damaged (`<name>.stale-<n>`) and the
+    train.json of a training still under way (not `complete`: restored without its checkpoints, it
+    would describe nothing)."""
     if not (any((src / "table1").glob("*.csv")) or any((src / "sitl_study").glob("*.csv"))):
         return []
     out = []
@@ -72,10 +74,21 @@ def sitl_records(src: Path) -> list:
         for root, dirs, names in os.walk(src / top):  # os.walk does not follow links to folders
             dirs[:] = [d for d in dirs if ".stale-" not in d]
             for name in names:
+                if name == "train.json" and not finished_training(Path(root) / name):
+                    continue
                 if name in SITL_RECORDS or (Path(root).name == "metrics" and name.endswith(".json")) \
                         or (name == "metadata.json" and "generate.json" in names):
                     out.append(Path(root) / name)
     return sorted(out)
+
+
+def finished_training(path: Path) -> bool:
+    """A train.json that records a finished training (sitl/train.py sets `complete` at the end)."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and record.get("complete") is True
 
 
 def size_mb(*folders) -> float:

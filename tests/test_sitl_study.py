@@ -179,12 +179,17 @@ def test_a_study_restored_from_its_snapshot_records_is_current_without_checkpoin
     stale = S.ckpt_dir(results / "sitl_study" / "runs" / "sitl_L1", "sitl").with_name("sitl.stale-9")
     stale.mkdir()  # a training set aside (trained on other inputs): not a record of the study
     (stale / "train.json").write_text('{"complete": true}')
+    under_way = S.ckpt_dir(results / "sitl_study" / "runs" / "sitl_under_way", "sitl")
+    under_way.mkdir(parents=True)  # a training still running: its record describes no finished run
+    (under_way / "train.json").write_text('{"fingerprint": "x", "complete": false, "segments": []}')
     try:
         snapshot.copy_results(results, snap, [])
     finally:
         shutil.rmtree(stale)
+        shutil.rmtree(results / "sitl_study" / "runs" / "sitl_under_way")
     assert list(snap.rglob("train.json")) and list(snap.rglob("budget.json"))
     assert not [p for p in snap.rglob("*") if ".stale-" in str(p)], "no set-aside runs"
+    assert not [p for p in snap.rglob("*") if "sitl_under_way" in str(p)], "no training under way"
     assert not [p for p in snap.rglob("*") if p.suffix in (".pkl", ".h5", ".png")], "only records"
     fresh = tmp_path / "fresh"
     assert {"sitl", "sitl_study"} <= set(restore.restore_one(snap, fresh))
