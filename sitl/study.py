@@ -303,7 +303,8 @@ def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
                "lr_start": rexp.train.lr_start if run.kind != "solver" else None,
                "seed": rexp.train.seed if run.kind != "solver" else None,
                "train_steps": tr.get("step_max"), "train_wall_s": tr.get("wall_s"),
-               "train_timed_from_step": timed_from_step(tr), "s_per_step": tr.get("s_per_step"), "best_step": tr.get("best_step"),
+               "train_timed_from_step": timed_from_step(tr), "s_per_step": tr.get("s_per_step"),
+               "best_step": tr.get("best_step"),
                **{k: m.get(k) for k in ("mse5", "mse20", "e_kin", "sinkhorn")},
                "mse20_lo": m["ci_mse20"][0], "mse20_hi": m["ci_mse20"][1], "n_windows": m["n_rollouts"],
                "finite": m["finite"], "blew_up": blew_up(m.get("e_kin"), frozen_e_kin),
@@ -357,9 +358,9 @@ def blew_up(e_kin, frozen_e_kin) -> bool:
 
 
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
-           "train_wall_s", "train_timed_from_step", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo", "mse20_hi", "e_kin", "sinkhorn",
-           "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo", "ratio_hi", "verdict",
-           "shared_with_table1", "folder"]
+           "train_wall_s", "train_timed_from_step", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo",
+           "mse20_hi", "e_kin", "sinkhorn", "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo",
+           "ratio_hi", "verdict", "shared_with_table1", "folder"]
 
 
 def timed_from_step(train: dict):
