@@ -480,23 +480,29 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
             title="SitL's training noise")
     ax1.grid(True, which="both", alpha=0.3)
     ax1.legend(fontsize=7)
-    # (b) temporal coarsening: the solver alone and SitL against M (and SitL with pushforward)
-    for kind, groups, marker, color, lab in (("solver", ("reference", "coarse"), "o", "C0", "solver only"),
-                                             ("sitl", ("reference", "coarse"), "D", "C1", "SitL"),
-                                             ("sitl", ("pushforward",), "^", "C3", "SitL with pushforward")):
+    # (b) temporal coarsening: the solver alone and SitL against M (and SitL with pushforward); the
+    # series are shifted slightly in M so that markers at the same point (e.g. two diverged runs) both show
+    diverged = {}
+    for shift, (kind, groups, marker, color, lab) in zip((1.0, 1.0, 1.05), (
+            ("solver", ("reference", "coarse"), "o", "C0", "solver only"),
+            ("sitl", ("reference", "coarse"), "D", "C1", "SitL"),
+            ("sitl", ("pushforward",), "^", "C3", "SitL with pushforward"))):
         pts = sorted([r for r in flat if r["kind"] == kind and r["group"] in groups], key=lambda r: r["M"])
         if not pts:
             continue
-        ax2.plot([r["M"] for r in pts], [r["mse20"] if r["finite"] else top for r in pts], "-", color=color,
+        ax2.plot([r["M"] * shift for r in pts], [r["mse20"] if r["finite"] else top for r in pts], "-", color=color,
                  alpha=0.4)
         for i, r in enumerate(pts):
-            ax2.errorbar([r["M"]], [r["mse20"] if r["finite"] else top], yerr=err(r) if r["finite"] else None,
+            ax2.errorbar([r["M"] * shift], [r["mse20"] if r["finite"] else top], yerr=err(r) if r["finite"] else None,
                          fmt=marker if r["finite"] else "x", color=color, capsize=3, label=lab if i == 0 else None)
             if not r["finite"]:
-                ax2.annotate("diverged", (r["M"], top), textcoords="offset points", xytext=(4, -10), fontsize=7)
+                diverged.setdefault(r["M"], []).append(lab)
             elif r.get("blew_up"):
                 ax2.annotate("blew up (MSE_Ekin above frozen)", (r["M"], r["mse20"]), textcoords="offset points",
                              xytext=(-4, 6), ha="right", fontsize=7)
+    for m, labs in diverged.items():  # one label per M, naming every run that diverged there
+        ax2.annotate("diverged: " + ", ".join(labs), (m, top), textcoords="offset points", xytext=(-4, -12),
+                     ha="right", fontsize=7)
     ax2.set_xscale("log")
     ax2.set_yscale("log")
     ax2.set(xlabel="temporal coarsening M (fine steps per substep; L = W / M substeps)",
