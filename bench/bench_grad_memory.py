@@ -13,9 +13,11 @@ Each configuration runs in a fresh subprocess, which reports
            through /proc/self/clear_refs after compilation; where that is refused, ru_maxrss after
            the run minus ru_maxrss after compilation, which can under-read if compilation peaked higher)
   compile_s, run_s   compilation, and one gradient evaluation (forward + backward)
+  other_load   other work on the machine during run_s, in cores (sph.harness.other_load; 0 idle)
 
 Configurations whose estimate exceeds --limit-gb are compiled but not run. Table printed and written
-to results/bench/grad_memory.csv (--quick: results/bench/grad_memory_quick.csv).
+to results/bench/grad_memory.csv (--quick: results/bench/grad_memory_quick.csv), which `make snapshot`
+commits to docs/results/bench/ and `make restore` brings back.
 
     python bench/bench_grad_memory.py            # dx = 0.02 (2500 particles), 100 / 1000 / 5000 steps
     python bench/bench_grad_memory.py --quick    # dx = 0.05, 10 / 50 steps
@@ -79,10 +81,14 @@ def measure_one(dx, n_steps, checkpoint, dtype, limit_gb):
         base_kb, how = _rss_kb("VmRSS"), "clear_refs"
     except OSError:
         base_kb, how = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, "ru_maxrss"
+    from sph.harness.other_load import OtherLoad
+
     t0 = time.perf_counter()
-    (loss, (_, invalid)), grad = compiled(state0.r, nbrs)
-    jax.block_until_ready(grad)
+    with OtherLoad() as load:  # other work on the machine while the gradient was timed, in cores
+        (loss, (_, invalid)), grad = compiled(state0.r, nbrs)
+        jax.block_until_ready(grad)
     out["run_s"] = time.perf_counter() - t0
+    out["other_load"] = load.fields()["other_load"]
     peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     out["rss_GB"] = max(peak_kb - base_kb, 0) * 1024 / GB
     out["rss_method"] = how
@@ -136,8 +142,9 @@ def main():
                       f"rss {row.get('rss_GB', float('nan')):.3f} GB, run {row.get('run_s', float('nan')):.1f} s, "
                       f"{row['status']}", flush=True)
     cols = ["dtype", "dx", "n", "K", "steps", "checkpoint", "segments", "est_GB", "temp_GB", "rss_GB",
-            "compile_s", "run_s", "grad_norm", "status"]
+            "compile_s", "run_s", "other_load", "grad_norm", "status", "date"]
     df = pd.DataFrame(rows)
+    df["date"] = time.strftime("%Y-%m-%d", time.gmtime())
     df = df[[c for c in cols if c in df.columns]]
     import jax
     print(f"\ngradient of E_kin(n steps) w.r.t. r0, TGV 2D TVF, jax {jax.__version__} on "

@@ -51,9 +51,22 @@ def restore_one(snap: Path, results: Path) -> list:
     return copied
 
 
+def restore_bench(snap: Path, results: Path) -> list:
+    """The snapshot's benchmark tables (docs/results/bench, report/snapshot.copy_bench) into
+    results/bench where results/bench has no file of that name; returns the names copied."""
+    snap, results = Path(snap), Path(results)
+    names = [f.name for f in sorted(snap.glob("*")) if f.is_file() and not (results / f.name).exists()] \
+        if snap.is_dir() else []
+    for n in names:
+        results.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(snap / n, results / n)
+    return names
+
+
 def restore(profile: str, snapshot_root="docs/results", results_root="results") -> dict:
-    """profile -> folders copied, for `profile` and its fallback profiles."""
-    out = {}
+    """profile -> folders copied, for `profile` and its fallback profiles; "bench" -> the benchmark
+    tables copied."""
+    out = {"bench": restore_bench(Path(snapshot_root) / "bench", Path(results_root) / "bench")}
     for prof in [profile] + fallbacks(profile):
         snap = Path(snapshot_root) / prof
         if prof != profile and not snap.is_dir():
@@ -74,7 +87,8 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     for prof, names in done.items():
-        kept = "nothing (every target folder already has outputs here)" if not names else ", ".join(names)
+        kept = ", ".join(names) if names else "nothing new" if prof == "bench" else \
+            "nothing (every target folder already has outputs here)"
         print(f"restore {Path(a.results) / prof}: {kept}", flush=True)
     return 0
 

@@ -91,6 +91,22 @@ def finished_training(path: Path) -> bool:
     return isinstance(record, dict) and record.get("complete") is True
 
 
+BENCH_SUFFIXES = (".csv", ".md", ".json")
+
+
+def copy_bench(src: Path, dst: Path) -> list:
+    """The benchmarks' tables (results/bench/*.{csv,md,json}, written by bench/*.py: timings and
+    memory the README quotes) into the snapshot's bench/ folder (docs/results/bench), so that a number
+    quoted from them survives the loss of results/. A table the snapshot holds and results/bench lacks
+    is kept (a benchmark is run by hand, one at a time); one that results/bench holds replaces it.
+    Returns the names copied."""
+    names = sorted(f.name for f in Path(src).glob("*") if f.is_file() and f.suffix in BENCH_SUFFIXES) \
+        if Path(src).is_dir() else []
+    for n in names:
+        _copy(Path(src) / n, Path(dst) / n)
+    return names
+
+
 def size_mb(*folders) -> float:
     return sum(p.stat().st_size for d in folders if Path(d).exists() for p in Path(d).rglob("*") if p.is_file()) / 2**20
 
@@ -147,11 +163,14 @@ def snapshot(profile: str, results, out, drop: bool = False) -> Path:
         own = dict(prov, profile=profiles[dst]) if profiles[dst] == profile else \
             dict(prov, profile=profiles[dst], shown_in=f"the {profile} report")
         (dst / provenance.FILE).write_text(json.dumps(own, indent=2) + "\n")
+    bench = copy_bench(results.parent / "bench", out.parent / "bench")
     build.write(model.build(out, profile), out / "report", copy_figures=False)
-    total = size_mb(*{d for _, d in groups})
-    print(f"snapshot -> {out}: {n} files, {total:.2f} MB", flush=True)
+    total = size_mb(*{d for _, d in groups}, out.parent / "bench")
+    print(f"snapshot -> {out}: {n} files, {total:.2f} MB; {len(bench)} benchmark tables -> {out.parent / 'bench'}",
+          flush=True)
     if total > LIMIT_MB:
-        big = ", ".join(f"{p.relative_to(out.parent)} ({p.stat().st_size / 2**20:.2f} MB)" for p in largest(*{d for _, d in groups}))
+        big = ", ".join(f"{p.relative_to(out.parent)} ({p.stat().st_size / 2**20:.2f} MB)"
+                        for p in largest(*{d for _, d in groups}, out.parent / "bench"))
         raise RuntimeError(f"snapshot is {total:.1f} MB, above the {LIMIT_MB:g} MB limit; largest: {big}")
     return out
 

@@ -94,11 +94,12 @@ def test_fitted_order_recovers_a_power_law():
 def test_checkpointing_section_compares_each_strategy_with_the_plain_gradient(tmp_path):
     """accuracy.md's checkpointing table (from bench_grad_memory.py's csv): one row per measurement,
     the gradient norm against the plain one of the same dtype and length (1 + 3e-13 -> 3.0e-13), '-'
-    where the plain gradient did not run (over the memory limit), and a note when there is no table."""
+    where the plain gradient did not run (over the memory limit), the other load beside each timing
+    ('not measured' where the table has none), and a note when there is no table."""
     csv = tmp_path / "grad_memory.csv"
     pd.DataFrame([
         dict(dtype="float64", steps=100, checkpoint="none", segments=1, run_s=2.0, rss_GB=1.5, est_GB=1.4,
-             grad_norm=4.0, status="ok"),
+             grad_norm=4.0, status="ok", other_load=0.7),
         dict(dtype="float64", steps=100, checkpoint="segments", segments=10, run_s=3.0, rss_GB=0.2, est_GB=0.2,
              grad_norm=4.0 * (1 + 3e-13), status="ok"),
         dict(dtype="float64", steps=5000, checkpoint="none", segments=1, run_s=np.nan, rss_GB=np.nan, est_GB=278.0,
@@ -109,8 +110,10 @@ def test_checkpointing_section_compares_each_strategy_with_the_plain_gradient(tm
     rows = [line for line in A.checkpointing_lines(csv) if line.startswith("| float64")]
     assert len(rows) == 4
     cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
-    assert cells[0][7] == "0.0e+00" and cells[1][7] == "3.0e-13"
-    assert cells[3][7] == "-" and cells[3][4] == "186"
+    assert cells[0][8] == "0.0e+00" and cells[1][8] == "3.0e-13"
+    assert cells[3][8] == "-" and cells[3][4] == "186"
+    assert cells[0][5] == "0.7" and cells[1][5] == "not measured"  # other work beside the timing, in cores
+    assert cells[2][5] == "-"  # not run
     assert any("bench_grad_memory.py" in line for line in A.checkpointing_lines(tmp_path / "missing.csv"))
 
 

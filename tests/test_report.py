@@ -255,6 +255,28 @@ def test_snapshot_leaves_out_the_records_of_an_experiment_still_running(tmp_path
     assert (dst / "done" / "a" / "record.json").exists() and not (dst / "running").exists()
 
 
+def test_benchmark_tables_go_into_the_snapshot_and_come_back_without_overwriting(tmp_path):
+    """results/bench's tables (the benchmarks the README quotes) are committed beside the profiles
+    (docs/results/bench): a new table replaces the snapshot's, one results/bench lacks stays in the
+    snapshot, a trajectory or figure is not copied; restore brings back only what results/bench lacks."""
+    from report import restore
+
+    bench, snap = tmp_path / "results" / "bench", tmp_path / "docs" / "bench"
+    bench.mkdir(parents=True)
+    snap.mkdir(parents=True)
+    (bench / "grad_memory.csv").write_text("steps,rss_GB\n100,0.6\n")
+    (bench / "big.h5").write_bytes(b"0" * 10)
+    (snap / "grad_memory.csv").write_text("steps,rss_GB\n100,9.9\n")
+    (snap / "peer.csv").write_text("case,ms\ntgv,1.3\n")
+    assert snapshot.copy_bench(bench, snap) == ["grad_memory.csv"]
+    assert (snap / "grad_memory.csv").read_text().endswith("0.6\n") and (snap / "peer.csv").exists()
+    assert not (snap / "big.h5").exists()
+    (bench / "grad_memory.csv").write_text("steps,rss_GB\n100,0.5\n")  # measured here since
+    assert restore.restore_bench(snap, bench) == ["peer.csv"]
+    assert (bench / "grad_memory.csv").read_text().endswith("0.5\n")  # never overwritten by the snapshot
+    assert restore.restore_bench(snap, bench) == [] and snapshot.copy_bench(tmp_path / "none", snap) == []
+
+
 def test_snapshot_refuses_to_drop_a_target_until_restore_seeds_it_from_the_committed_one(smoke, tmp_path):
     """A fresh clone (results/ without a target the committed snapshot holds) cannot wipe that target by
     `make snapshot`: it refuses naming it; `make restore` copies the snapshot's folder back (never over a

@@ -272,16 +272,18 @@ def checkpointing_lines(csv: Path) -> list:
     lines += ["Same gradient, different memory and time (`bench/bench_grad_memory.py`; rss = peak resident "
               "memory above the process's before the gradient, est = XLA's own estimate; the last column "
               "compares the gradient's norm with the plain one where both ran).", "",
-              "| dtype | steps | checkpointing | segments | gradient [s] | rss [GB] | est [GB] | "
-              "norm / plain - 1 | status |", "|---|---|---|---|---|---|---|---|---|"]
+              "| dtype | steps | checkpointing | segments | gradient [s] | other load [cores] | rss [GB] | est [GB] | "
+              "norm / plain - 1 | status |", "|---|---|---|---|---|---|---|---|---|---|"]
     for _, r in t.iterrows():
         plain = t[(t["dtype"] == r["dtype"]) & (t["steps"] == r["steps"]) & (t["checkpoint"] == "none")]
         dev = "-"
         if len(plain) and np.isfinite(plain["grad_norm"].iloc[0]) and np.isfinite(r.get("grad_norm", np.nan)):
             dev = f"{r['grad_norm'] / plain['grad_norm'].iloc[0] - 1:.1e}"
         fmt = lambda k, f: (f.format(r[k]) if k in r and pd.notna(r[k]) else "-")  # noqa: E731
+        load = other_load.cell(r.get("other_load"))
         lines.append(f"| {r['dtype']} | {int(r['steps'])} | {r['checkpoint']} | {fmt('segments', '{:.0f}')} | "
-                     f"{fmt('run_s', '{:.3g}')} | {fmt('rss_GB', '{:.3g}')} | {fmt('est_GB', '{:.3g}')} | {dev} | "
+                     f"{fmt('run_s', '{:.3g}')} | {load if pd.notna(r.get('run_s')) else '-'} | {fmt('rss_GB', '{:.3g}')} | "
+                     f"{fmt('est_GB', '{:.3g}')} | {dev} | "
                      f"{r.get('status', '')} |")
     return lines + [""]
 
