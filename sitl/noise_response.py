@@ -10,6 +10,8 @@ in LagrangeBench's normalised units (a * Delta t^2 / acc_std, Delta t = the fram
 the RMS of the clean acceleration in the same units. When the change dominates, the corrector is
 trained mostly to cancel the solver's reaction to noise that the test rollouts never contain.
 
+Writes results/<profile>/sitl/metrics/noise_response.json (committed by `make snapshot`).
+
     .venv-lb/bin/python sitl/noise_response.py --profile cpu [--stds 3e-4 1e-4 3e-5 1e-5]
 """
 import json
@@ -57,9 +59,13 @@ def main(args):
     exp = S.load(args.profile)
     path = generate.ready(exp, args.results)
     rows = response(path, exp.model.substeps, args.stds or [3e-4, 1e-4, 3e-5, exp.train.sitl_noise_std])
+    dest = S.metrics_path(args.results, "solver").with_name("noise_response.json")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(json.dumps({"substeps": exp.model.substeps, "frame": 100, "seed": 0, "rows": rows}, indent=2) + "\n")
     for r in rows:
         print(f"noise {r['noise_std']:.1e} ({r['noise_over_dx']:.1e} dx): SPH acceleration changes by "
               f"{r['rms_change']:.3g} RMS (normalised units); the clean acceleration's RMS is {r['rms_clean']:.3g}")
+    print(f"written {dest}", flush=True)
     return rows
 
 
