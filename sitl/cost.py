@@ -338,6 +338,10 @@ def plot(rows: list, path: Path, title: str):
         ax.plot([r["ms_per_coarse_step"] for r in family], [r["mse20"] for r in family], "-", color="C0",
                 lw=1, alpha=0.5)
     shown = set()
+    # the diverged points all sit on one line (y = top): their labels are stacked downwards by time
+    # so that points close in cost do not print over each other
+    diverged = sorted((r for r in rows if r not in ok), key=lambda r: r["ms_per_coarse_step"])
+    stack = {id(r): i for i, r in enumerate(diverged)}
     for r in rows:
         marker, color = STYLE[r["kind"]]
         y = r["mse20"] if r in ok else top
@@ -347,7 +351,8 @@ def plot(rows: list, path: Path, title: str):
                   ls="none", label=None if label in shown else label)
         shown.add(label)
         note = ("fine" if r["kind"] == "fine" else f"M={_m(r['M'])}") + ("" if r in ok else " diverged")
-        ax.annotate(note, (r["ms_per_coarse_step"], y), textcoords="offset points", xytext=(5, 4), fontsize=7)
+        ax.annotate(note, (r["ms_per_coarse_step"], y), textcoords="offset points",
+                    xytext=(5, 4 - 11 * stack.get(id(r), 0)), fontsize=7)
     ax.set(xlabel="inference time per coarse step [ms]", ylabel="MSE$_{20}$ (test rollouts)", title=title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
