@@ -58,10 +58,12 @@ def options(ap):
 def main(args):
     exp = S.load(args.profile)
     path = generate.ready(exp, args.results)
-    rows = response(path, exp.model.substeps, args.stds or [3e-4, 1e-4, 3e-5, exp.train.sitl_noise_std])
+    frame, seed = 100, 0
+    rows = response(path, exp.model.substeps, args.stds or [3e-4, 1e-4, 3e-5, exp.train.sitl_noise_std], frame, seed)
     dest = S.metrics_path(args.results, "solver").with_name("noise_response.json")
     dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(json.dumps({"substeps": exp.model.substeps, "frame": 100, "seed": 0, "rows": rows}, indent=2) + "\n")
+    dest.write_text(json.dumps({"substeps": exp.model.substeps, "frame": frame, "seed": seed, "rows": rows},
+                               indent=2) + "\n")
     for r in rows:
         print(f"noise {r['noise_std']:.1e} ({r['noise_over_dx']:.1e} dx): SPH acceleration changes by "
               f"{r['rms_change']:.3g} RMS (normalised units); the clean acceleration's RMS is {r['rms_clean']:.3g}")
