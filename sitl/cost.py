@@ -350,9 +350,11 @@ def plot(rows: list, path: Path, title: str):
         ax.loglog(r["ms_per_coarse_step"], y, marker if r in ok else "x", color=color, ms=9 if marker == "*" else 7,
                   ls="none", label=None if label in shown else label)
         shown.add(label)
-        note = ("fine" if r["kind"] == "fine" else f"M={_m(r['M'])}") + ("" if r in ok else " diverged")
-        ax.annotate(note, (r["ms_per_coarse_step"], y), textcoords="offset points",
-                    xytext=(5, 4 - 11 * stack.get(id(r), 0)), fontsize=7)
+        note = (("fine" if r["kind"] == "fine" else f"M={_m(r['M'])}")
+                + (" pushforward" if "pushforward" in r["method"] else "") + ("" if r in ok else " diverged"))
+        # the solver point SitL corrects sits next to M = 5: its label goes below the point
+        dy = -11 if "as SitL" in r["method"] else 4 - 11 * stack.get(id(r), 0)
+        ax.annotate(note, (r["ms_per_coarse_step"], y), textcoords="offset points", xytext=(5, dy), fontsize=7)
     ax.set(xlabel="inference time per coarse step [ms]", ylabel="MSE$_{20}$ (test rollouts)", title=title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)

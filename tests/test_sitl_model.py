@@ -2,7 +2,8 @@
 correction off it equals our solver's coarse substeps exactly, and the gradient through it (GNN
 weights -> L SPH substeps -> output) agrees with central finite differences along one weight
 direction (float64); the untrained SitL (last layer zero) equals the solver alone on a batch; its
-graph equals LagrangeBench's own; evaluation windows come from every seed. FAILS, not skips, when
+graph equals LagrangeBench's own; evaluation windows come from every seed; the solver's reaction to
+training noise (sitl/noise_response.py) is linear and of the expected size. FAILS, not skips, when
 .venv-lb is missing."""
 import json
 import os
@@ -218,6 +219,34 @@ _INTERLEAVED = textwrap.dedent(
     """
 )
 
+_NOISE = textwrap.dedent(
+    """
+    import json, sys, warnings
+    warnings.simplefilter("ignore")
+    import jax
+    jax.config.update("jax_enable_x64", True)
+    import lbcompat
+    lbcompat.import_lagrangebench()
+    from pathlib import Path
+    import numpy as np
+    from sitl import noise_response as NR
+
+    path = Path(sys.argv[2])
+    meta = json.loads((path / "metadata.json").read_text())
+    s = 1e-7 * meta["dx"]
+    def one(std):
+        return NR.response(path, 3, [std], frame=2, seed=7, dtype="float64")[0]
+    rows = {"zero": one(0.0), "small": one(s), "double": one(2 * s)}
+    # the scaling estimate of a weakly compressible solver's reaction: displacements of std s change
+    # rho by ~ rho s / dx, p by c^2 times that, the acceleration by ~ c^2 s / dx^2; in LagrangeBench's
+    # normalised units (times frame_dt^2 / acc_std)
+    c = meta["c_ref_factor"] * meta["u_ref"]
+    acc_std = float(np.sqrt(np.mean(np.square(meta["acc_std"]))))
+    estimate = c ** 2 * s / meta["dx"] ** 2 * meta["frame_dt"] ** 2 / acc_std
+    print(json.dumps({"rows": rows, "estimate": estimate}))
+    """
+)
+
 
 def _run(script: str, dtype: str, *args) -> dict:
     if not LB_PYTHON.exists() or not (ROOT / ".venv-lb" / ".stamp").exists():
@@ -295,3 +324,19 @@ def test_evaluation_windows_come_round_robin_from_every_seed(tmp_path):
     assert out["n"] == 6 and out["seeds"] == [0, 1, 2, 0, 1, 2]
     # windows of 7 frames cut from the 15 test frames (frames 16..30 of each seed): starts 16 and 23
     assert out["found"] == [[[0, 16]], [[1, 16]], [[2, 16]], [[0, 23]], [[1, 23]], [[2, 23]]], out["found"]
+
+
+def test_noise_response_is_the_linear_reaction_of_the_sph_substep(tmp_path):
+    """sitl/noise_response.py on a smoke training frame, float64: no noise changes nothing; twice the
+    noise (the same draw, scaled) changes the acceleration twice as much, to 0.1 % (the SPH acceleration
+    is smooth in the positions, so a tiny perturbation acts linearly); and the change has the
+    magnitude a weakly compressible solver's scaling predicts (c^2 s / dx^2, within a factor 10 either
+    way), in LagrangeBench's normalised units, so the script's unit conversion is the right one."""
+    out = _run(_NOISE, "float64", _smoke_dataset(tmp_path))
+    rows = out["rows"]
+    assert rows["zero"]["rms_change"] == 0.0, rows
+    assert rows["small"]["rms_change"] > 0 and rows["small"]["rms_clean"] > 0, rows
+    assert rows["small"]["rms_clean"] == rows["double"]["rms_clean"], rows
+    ratio = rows["double"]["rms_change"] / rows["small"]["rms_change"]
+    assert abs(ratio - 2.0) < 2e-3, (ratio, rows)
+    assert 0.1 < rows["small"]["rms_change"] / out["estimate"] < 10.0, out
