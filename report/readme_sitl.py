@@ -3,13 +3,13 @@ SitL scripts wrote into the snapshot (the `cpu` sibling snapshot where the paper
 labelled), verbatim but for their title: `sitl_study` (sitl_study/study.md, sitl/study.py: every
 study run's MSE_5 / MSE_20 / MSE_Ekin with its interval and its paired verdict against the solver
 alone, the equal-cost budget, the authors' force check) and `sitl_table1` (table1/table1.md,
-sitl/table1.py: Table 1 with its intervals and paired comparisons). report/readme_tables.py
-registers them."""
+sitl/table1.py: Table 1 with its intervals and paired comparisons) and `sitl_cost` (sitl/cost.md,
+sitl/cost.py: the accuracy-cost plane). report/readme_tables.py registers them."""
 from pathlib import Path
 
 from .readme_tables import find_source
 
-SOURCES = {"sitl_study": "sitl_study/study.md", "sitl_table1": "table1/table1.md"}
+SOURCES = {"sitl_study": "sitl_study/study.md", "sitl_table1": "table1/table1.md", "sitl_cost": "sitl/cost.md"}
 
 
 def verbatim(snapshot: Path, rel: str) -> list:

@@ -11,8 +11,8 @@ Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, tab
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
 (Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
-`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `sitl_study` and
-`sitl_table1` (Solver-in-the-Loop, report/readme_sitl.py; in sitl/README.md); these modules build
+`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `sitl_study`,
+`sitl_table1` and `sitl_cost` (Solver-in-the-Loop, report/readme_sitl.py); these modules build
 on this one's helpers. `make readme-tables` regenerates every README of `READMES` (the top-level one
 and the experiments' own, which show the same generated tables in their Results sections).
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose

@@ -45,10 +45,11 @@ would compute now; the metrics' training steps and best step equal to its). Thei
 read from it, their time is measured here from ckp/<kind>/best. Otherwise they are left out, with
 the reason printed.
 
-Writes results/<profile>/sitl/cost.csv, cost.png (log-log MSE_20 against ms per coarse step) and a
-run record per point, sitl/cost/<name>/record.json (sph.harness.record's schema: experiment "sitl", err_mse20,
-err_mse5, err_e_kin; wall_s is one 20-step rollout, 20 x the time per coarse step, ms_per_step the
-time per coarse step), which `make accuracy` gathers. cost.json keeps the inputs' key: a call with
+Writes results/<profile>/sitl/cost.csv, cost.md (the same points as a table, which the READMEs
+show), cost.png (log-log MSE_20 against ms per coarse step) and a run record per point,
+sitl/cost/<name>/record.json (sph.harness.record's schema: experiment "sitl", err_mse20, err_mse5,
+err_e_kin; wall_s is one 20-step rollout, 20 x the time per coarse step, ms_per_step the time per
+coarse step), which `make accuracy` gathers. cost.json keeps the inputs' key: a call with
 the same inputs (data, config, code, trained models' metrics) does nothing.
 
     .venv-lb/bin/python sitl/cost.py --profile smoke [--results results/smoke] [--force]
@@ -362,6 +363,35 @@ def plot(rows: list, path: Path, title: str):
     plt.close(fig)
 
 
+def markdown(rows: list, exp: S.Experiment, profile: str) -> str:
+    """cost.md: the plane as a table, one row per point in cost.csv's order (what the README shows)."""
+    d = exp.data
+    n = sorted({int(r["n_rollouts"]) for r in rows if r.get("n_rollouts")})
+    load = max((r.get("other_load") or 0.0) for r in rows) if rows else 0.0
+
+    def num(r, k):
+        v = r.get(k)
+        return "diverged" if v is None or not math.isfinite(v) else f"{v:.3g}"
+
+    lines = [f"# Accuracy against cost, RPF 2D ({profile}): {d.n_particles} particles, coarse step = "
+             f"{d.write_every} dt", "",
+             f"MSE of 20-step rollouts, mean over {'/'.join(map(str, n))} test windows (std over the windows); "
+             f"time: one jitted coarse step (features, graph list, model, integration), median / minimum "
+             f"over {exp.cost.repeats} interleaved rounds, beside {load:.2f} cores of other work. GNS and "
+             f"SitL: MSE from their evaluation (metrics/<model>.json), time measured here. M: fine steps "
+             f"dt per solver substep; L: substeps per coarse step.", "",
+             "| point | M | L | substep dt / CFL dt | MSE_5 | MSE_20 (std) | MSE_Ekin | ms per coarse step "
+             "(median / min) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        mse20 = num(r, "mse20") + (f" ({r['std_mse20']:.2g})" if r["finite"] and r.get("std_mse20") is not None
+                                   and math.isfinite(r["std_mse20"]) else "")
+        cfl = "" if r.get("substep_over_cfl") is None else f"{r['substep_over_cfl']:.3g}"
+        lines.append(f"| {r['method']} | {_m(r['M'])} | {r.get('substeps') or ''} | {cfl} | {num(r, 'mse5')} | "
+                     f"{mse20} | {num(r, 'e_kin')} | {r['ms_per_coarse_step']:.3g} / {r['ms_min']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
 def write_csv(rows: list, path: Path):
     tmp = path.with_suffix(".csv.tmp")
     with tmp.open("w", newline="") as f:
@@ -374,7 +404,7 @@ def write_csv(rows: list, path: Path):
 
 def outputs(results) -> list:
     out = S.out_dir(results)
-    return [out / "cost.csv", out / "cost.png", out / "cost.json"]
+    return [out / "cost.csv", out / "cost.png", out / "cost.json", out / "cost.md"]
 
 
 def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> list:
@@ -474,14 +504,15 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
 
 
 def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str) -> None:
-    """cost.csv, cost.png, then cost.json (the rows, the key of their inputs and the digests of the
+    """cost.csv, cost.md, cost.png, then cost.json (the rows, the key of their inputs and the digests of the
     two, checked on the next run) and the stamp `cost.done` listing the current points' record
     folders (the atlas reads exactly those: `sph.harness.stamp.current_folders`)."""
     out = S.out_dir(results)
     write_csv(rows, out / "cost.csv")
+    (out / "cost.md").write_text(markdown(rows, exp, profile or Path(results).name))
     plot(rows, out / "cost.png", f"RPF 2D, {exp.data.n_particles} particles ({profile or Path(results).name}): "
                                   f"coarse step = {exp.data.write_every} dt")
-    made = integrity.digests(out, ["cost.csv", "cost.png"])
+    made = integrity.digests(out, ["cost.csv", "cost.md", "cost.png"])
     (out / "cost.json").write_text(json.dumps({"key": key, "rows": rows, "outputs": made}, indent=2) + "\n")
     stamp_points(results, rows)
 

@@ -57,7 +57,7 @@ $(SITL_FIG3) &: $(SITL_METRICS) $(SITL)/plot_fig3.py FORCE | $(SITL_VENV) $(VENV
 # re-measures only when the key of its inputs changed (dataset, config,
 # its code and the sph modules it imports, the trained models' metrics and training records) and
 # leaves a stale or missing GNS / SitL out, naming the command that refreshes it.
-SITL_COST := $(addprefix $(SITL_OUT)/,cost.csv cost.png cost.json)
+SITL_COST := $(addprefix $(SITL_OUT)/,cost.csv cost.png cost.json cost.md)
 sitl-cost: $(SITL_COST)
 $(SITL_COST): OUTS := $(SITL_COST)
 $(SITL_COST) &: $(SITL_DATA) $(SITL)/cost.py $(SITL)/integrity.py FORCE | $(SITL_VENV) $(VENV)

@@ -76,6 +76,13 @@ def test_points_outputs_and_no_training(cost):
         if r["kind"] == "solver":
             assert int(r["substeps"]) * float(r["M"]) == pytest.approx(W)
     assert (S.out_dir(results) / "cost.png").stat().st_size > 10_000
+    # cost.md, the table the READMEs show: one row per point, its MSE_20 and median time as in cost.csv
+    md = [ln for ln in (S.out_dir(results) / "cost.md").read_text().splitlines() if ln.startswith("| ")][1:]
+    assert len(md) == len(rows)
+    for line, r in zip(md, rows.values()):
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert cells[0] == r["method"] and cells[5].split()[0] == f"{float(r['mse20']):.3g}", (line, r)
+        assert cells[7].split(" / ")[0] == f"{float(r['ms_per_coarse_step']):.3g}", (line, r)
     assert "GNS left out" in out and "SitL (L=3) left out" in out
     assert not (S.out_dir(results) / "ckp").exists()          # nothing was trained
 
@@ -134,7 +141,7 @@ def test_unchanged_inputs_are_not_measured_again(cost):
     before = json.loads((S.out_dir(results) / "cost.json").read_text())["key"]
     proc = _make(results)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "cost.csv, cost.png, cost.json}: up to date with its runs" in proc.stdout, proc.stdout[-2000:]
+    assert "sitl/{cost.csv, cost.png, cost.json, ...}: up to date with its runs" in proc.stdout, proc.stdout[-2000:]
     assert "cost: " not in proc.stdout                       # cost.py was not even started
     assert json.loads((S.out_dir(results) / "cost.json").read_text())["key"] == before
 
