@@ -29,6 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from sitl.fmt import ratio_digits
 from sph.harness import other_load
 
 from . import atlas, paper
@@ -147,8 +148,10 @@ def table1_comparisons(src: Path) -> list:
     lines = ["", "Paired on the same test windows (ratio of the means, 95 % paired bootstrap interval):", "",
              "| a / b | metric | ratio | a is |", "|---|---|---|---|"]
     for _, r in c.iterrows():
-        lines.append(f"| {NAMES[r['a']]} / {NAMES[r['b']]} | {r['metric']} | {float(r['ratio']):.3g} "
-                     f"[{float(r['lo']):.3g}, {float(r['hi']):.3g}] | {r['verdict']} |")
+        ratio, lo, hi = float(r["ratio"]), float(r["lo"]), float(r["hi"])
+        d = ratio_digits(ratio, lo, hi)
+        lines.append(f"| {NAMES[r['a']]} / {NAMES[r['b']]} | {r['metric']} | {ratio:.{d}g} "
+                     f"[{lo:.{d}g}, {hi:.{d}g}] | {r['verdict']} |")
     return lines
 
 

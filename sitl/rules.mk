@@ -40,7 +40,7 @@ $(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/config.yaml $(SITL)/model.py $(
 SITL_TABLE1 := $(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md
 table1: $(SITL_TABLE1)
 $(SITL_TABLE1): OUTS := $(SITL_TABLE1)
-$(SITL_TABLE1) &: $(SITL_METRICS) $(SITL)/table1.py $(SITL)/stats.py FORCE | $(SITL_VENV) $(VENV)
+$(SITL_TABLE1) &: $(SITL_METRICS) $(SITL)/table1.py $(SITL)/stats.py $(SITL)/fmt.py FORCE | $(SITL_VENV) $(VENV)
 	$(DELIVER) $(SITL_PY) $(SITL)/table1.py --profile $(PROFILE) --results $(RESULTS)
 
 SITL_FIG3 := $(RESULTS)/fig3/fig3.png $(RESULTS)/fig3/fig3.pdf

@@ -45,6 +45,7 @@ from pathlib import Path
 
 from sitl import settings as S
 from sitl import stats
+from sitl.fmt import ratio_digits
 from sph.harness.cli import profile_main, select
 from sph.harness.configtools import merge
 from sph.harness.lock import folder_lock
@@ -380,7 +381,7 @@ def _train_cell(r: dict) -> str:
     return f"{r['train_steps']} ({_f(r['train_wall_s'])}{part})"
 
 
-def _f(x) -> str:
+def _f(x, digits: int = 3) -> str:
     if x is None or x == "":
         return ""
     if isinstance(x, bool):
@@ -389,7 +390,7 @@ def _f(x) -> str:
         return str(x)
     if isinstance(x, float) and not math.isfinite(x):
         return "diverged" if math.isnan(x) or x > 0 else str(x)
-    return f"{x:.3g}"
+    return f"{x:.{digits}g}"
 
 
 def _other_work(cores) -> str:
@@ -411,7 +412,9 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
         if r["group"] == "authors_force":
             continue
         tr = _train_cell(r)
-        vs = "" if r.get("vs") is None else f"{_f(r['ratio_mse20'])} [{_f(r['ratio_lo'])}, {_f(r['ratio_hi'])}]"
+        d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
+        vs = "" if r.get("vs") is None else \
+            f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_f(r.get('noise_std'))} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} |")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from sitl import settings as S
 from sitl import stats
+from sitl.fmt import ratio_digits
 from sph.harness.cli import profile_main
 from sph.harness.io import OutputError
 
@@ -98,12 +99,12 @@ def ordering(measured: dict, comps: list) -> str:
     return "; ".join(out)
 
 
-def fmt(x) -> str:
+def fmt(x, digits: int = 3) -> str:
     if x is None:
         return ""
     if isinstance(x, int):
         return str(x)
-    return f"{x:.3g}"
+    return f"{x:.{digits}g}"
 
 
 def fmt_ci(row: dict, m: str) -> str:
@@ -140,8 +141,10 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
     if comps:
         lines += ["", "Paired comparisons on the same windows: ratio of means [95 % paired bootstrap interval].", "",
                   "| a / b | metric | ratio | verdict |", "|---|---|---|---|"]
-        lines += [f"| {COLUMNS[c['a']]} / {COLUMNS[c['b']]} | {c['metric']} | {fmt(c['ratio'])} "
-                  f"[{fmt(c['lo'])}, {fmt(c['hi'])}] | {COLUMNS[c['a']]} {c['verdict']} |" for c in comps]
+        for c in comps:
+            d = ratio_digits(c["ratio"], c["lo"], c["hi"])
+            lines.append(f"| {COLUMNS[c['a']]} / {COLUMNS[c['b']]} | {c['metric']} | {fmt(c['ratio'], d)} "
+                         f"[{fmt(c['lo'], d)}, {fmt(c['hi'], d)}] | {COLUMNS[c['a']]} {c['verdict']} |")
     lines += ["", f"Paper's ordering (SitL < GNS < solver only): {ordering(measured, comps)}.", ""]
     (dest / "table1.md").write_text("\n".join(lines))
     print("\n".join(lines))

@@ -1,7 +1,8 @@
 """sitl/stats.py: the bootstrap interval of a mean over windows covers the true mean about as often
 as it claims (normal samples, known mean), the paired ratio interval finds a known ratio and is
 narrower than the unpaired intervals when the windows' difficulty is shared, and no verdict rests on
-fewer than MIN_WINDOWS windows or on a diverged (non-finite) window."""
+fewer than MIN_WINDOWS windows or on a diverged (non-finite) window; a ratio prints with enough
+digits to tell it from its interval (sitl/fmt.py)."""
 import math
 
 import numpy as np
@@ -40,3 +41,19 @@ def test_no_verdict_from_few_or_diverged_windows():
     assert all(math.isnan(x) for x in stats.bootstrap_ci([1.0]))
     r, lo, hi = stats.paired_ratio([1.0, 2.0], [1.0, math.nan])
     assert math.isnan(r) and stats.verdict(lo, hi, 100) == "undecided"
+
+
+def test_a_ratio_prints_with_the_digits_that_tell_it_from_its_interval():
+    """sitl.fmt.ratio_digits: three significant digits when they suffice; more when the interval's
+    ends would print as the ratio itself (a "higher" verdict beside "1 [1, 1]") or a value other than
+    1 as "1"; never more than six."""
+    from sitl.fmt import ratio_digits
+
+    assert ratio_digits(172.3, 158.1, 186.4) == 3
+    d = ratio_digits(1.000161, 1.0000567, 1.000278)
+    assert d == 5 and [f"{v:.{d}g}" for v in (1.000161, 1.0000567, 1.000278)] == ["1.0002", "1.0001", "1.0003"]
+    assert ratio_digits(0.99976, 0.99945, 1.00006) == 5        # 0.99976 [0.99945, 1.0001], not [.., 1]
+    assert ratio_digits(0.9, 0.85, 1.0) == 3                    # an end that is 1 prints as 1
+    assert ratio_digits(1.0, 1.0, 1.0) == 3                       # equal values need no more digits
+    assert ratio_digits(float("inf"), float("nan"), None) == 3    # diverged sides print as words
+    assert ratio_digits(1.0 + 1e-9, 1.0, 1.0 + 2e-9) == 6
