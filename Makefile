@@ -44,7 +44,8 @@ help:
 	@echo "make sitl-cost [PROFILE=smoke]  Solver-in-the-Loop accuracy-cost plane: MSE_20 vs time per coarse step"
 	@echo "make sitl-study [PROFILE=smoke] when SitL beats the solver alone: noise, coarsening, seeds, equal cost"
 	@echo "make sitl-divergence [PROFILE=smoke] where the coarse solver and SitL rollouts break, step by step"
-	@echo "make <folder>                   any experiments/<folder> with a tgv2d-style rules.mk (e.g. a copy of tgv2d)"
+	@echo "make droplet [PROFILE=smoke]    surface tension: a 2D droplet at rest against Laplace's law (beyond the paper)"
+	@echo "make <folder>                   any experiments/<folder> with a study.py (the protocol) or a tgv2d-style rules.mk"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"
 	@echo "make test                       test suite"
@@ -117,6 +118,25 @@ readme-tables: | $(VENV)
 	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE)
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
+
+# --- experiment folders of the protocol (sph.harness.experiment): config.yaml + study.py + plot_<name>.py
+# One rule set for every such folder, whatever its name (a copy is `make <copy>`): the run step calls the
+# harness, whose cache re-runs exactly what changed, and stamps the current runs; each plot_<name>.py makes
+# <results>/<folder>/<name>.{png,pdf} through $(DELIVER), re-plotting only when the runs or the script change.
+PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py))
+define protocol_rules
+$(RESULTS)/$(notdir $(1))/runs.done: FORCE | $(VENV)
+	$$(PY) -m sph.harness.stamp $$@ $$(dir $$@) -- $$(PY) -m sph.harness.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS)
+$(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p)))))
+.PHONY: $(notdir $(1))
+$(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(RESULTS)/$(notdir $(1))/$(patsubst plot_%.py,%,$(notdir $(p))).png)
+endef
+define protocol_plot
+$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf: OUTS := $(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf
+$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf &: $(RESULTS)/$(notdir $(1))/runs.done $(2) sph/harness/figures.py FORCE | $(VENV)
+	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS)
+endef
+$(foreach d,$(PROTOCOL_DIRS),$(eval $(call protocol_rules,$(d))))
 
 clean:
 	rm -rf results

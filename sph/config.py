@@ -3,7 +3,7 @@
 Every field is checked on construction, named in the error (`material.eta: ...`): every number must
 be finite, and each has its sign or range (see the class docstrings).
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Optional
 
 from .errors import require, require_finite
@@ -55,6 +55,8 @@ class Effects:
     artificial_viscosity  alpha of Monaghan's artificial viscosity (0 = off), for free-surface flows
     heat                  thermal diffusion (Cleary 1998); needs material.kappa, material.c_p and an
                           initial temperature in the scene
+    surface_tension       sigma of the continuum surface force between phases 0 and 1 (Morris 2000,
+                          sph.surface_tension), 0 = off; needs scene.phase
     """
 
     tvf: bool = False
@@ -65,9 +67,11 @@ class Effects:
     walls: Optional[str] = None
     heat: bool = False
     artificial_viscosity: float = 0.0
+    surface_tension: float = 0.0
 
     def __post_init__(self):
         require_finite(self, "effects")
+        require(self.surface_tension >= 0, "effects.surface_tension", f"must be >= 0, got {self.surface_tension}")
         require(self.walls in WALL_MODES, "effects.walls",
                 f"{self.walls!r} is not one of {WALL_MODES} (null = no walls)")
         require(not (self.riemann and not self.density_evolution), "effects.riemann",
@@ -84,18 +88,14 @@ class Effects:
                 "re-initialization corrects an evolved density: set effects.density_evolution: true")
 
     def names(self) -> list[str]:
-        """Names of the active effects, for logs and metadata."""
-        out = [n for n in ("tvf", "riemann", "density_evolution") if getattr(self, n)]
-        if self.density_reinit_every:
-            out.append(f"density_reinit_every={self.density_reinit_every}")
-        if self.gravity is not None:
-            out.append("gravity")
-        if self.walls is not None:
-            out.append(f"walls={self.walls}")
-        if self.heat:
-            out.append("heat")
-        if self.artificial_viscosity:
-            out.append(f"artificial_viscosity={self.artificial_viscosity}")
+        """Names of the declared effects (fields off their default), in field order, for logs and
+        metadata: a flag by its name, a vector (gravity) by its name, any other value as name=value."""
+        out = []
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value == f.default:
+                continue
+            out.append(f.name if isinstance(value, (bool, tuple, list)) else f"{f.name}={value}")
         return out
 
 

@@ -5,7 +5,7 @@ from typing import Optional
 
 import jax.numpy as jnp
 
-from . import walls
+from . import registry, walls
 from .config import Numerics
 from .eos import RiemannEoS, TaitEoS
 from .errors import ConfigError
@@ -59,6 +59,10 @@ def derive(scene: Scene, numerics: Numerics) -> Constants:
     g_max = force.g_max if force is not None else 0.0
     diffusivity = mat.kappa / (mat.rho_ref * mat.c_p) if fx.heat else 0.0
     limits = time_step(h, c_ref, mat.u_ref, mat.eta, mat.rho_ref, g_max, numerics.cfl, diffusivity)
+    extra = registry.dt_limits(scene, numerics, h)
+    if extra:
+        limits = {**{k: v for k, v in limits.items() if k != "dt"}, **extra}
+        limits["dt"] = min(limits.values())
     w0 = float(kernel.w(0.0))
     # float32 only: there 1 / sum^2 of a kernel-tail weight sum overflows (walls.fluid_weights);
     # float64 keeps the exact derivative, which the gradient check needs

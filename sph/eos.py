@@ -1,5 +1,7 @@
-"""Equations of state p(rho) and their inverses rho(p)."""
+"""Equations of state p(rho) and their inverses rho(p); the pressure pass."""
 from dataclasses import dataclass
+
+from .passes import Pass
 
 
 @dataclass(frozen=True)
@@ -46,3 +48,19 @@ class RiemannEoS:
 
     def rho(self, p):
         return (p - self.p_bg) / self.c_ref**2 + self.rho_ref
+
+
+@dataclass(frozen=True)
+class PressurePass(Pass):
+    """Step 3: p = EoS(rho) on every particle (walls take theirs from the wall pass after)."""
+
+    eos: object
+    reads = ("rho",)
+    writes = ("p",)
+
+    @classmethod
+    def build(cls, scene, numerics, c):
+        return cls(c.eos)
+
+    def __call__(self, f, ctx, idx, step):
+        return f.replace(p=self.eos.p(f.rho))

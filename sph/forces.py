@@ -53,5 +53,7 @@ class ReversePoiseuilleForce:
 class BodyForce:
     """Force-pass term: the body force g at particle i (`i.g`), added to du/dt."""
 
+    reads = ("r", "g")
+
     def __call__(self, pp, i, j):
         return Rates(dudt=i.g)

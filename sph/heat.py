@@ -5,13 +5,16 @@
 
 For a single material kappa_i kappa_j/(kappa_i + kappa_j) = kappa/2, and r_ij . grad_i W_ij / |r_ij|^2
 is the pair factor f = dW/dr / r of `sph.pairs` (neighbour lists exclude i itself, so r_ij > 0 and no
-regularization is needed). The Dirichlet (fixed-temperature) particles and the wall extrapolation of
-the temperature are handled by the solver.
+regularization is needed). The heat pass (`HeatPass`, step 6) integrates dT/dt on the free fluid
+particles; the wall pass extrapolates the temperature to the walls (`sph.walls`).
 """
 from dataclasses import dataclass
 from typing import Optional
 
+import jax.numpy as jnp
+
 from .pairs import sum_j
+from .passes import Pass
 from .rates import Rates
 
 
@@ -42,6 +45,35 @@ class Conduction:
 
     kappa: float
     c_p: float
+    reads = ("r", "mass", "rho", "T")
 
     def __call__(self, pp, i, j):
         return Rates(dTdt=temperature_rate(pp, i, j, self.kappa, self.c_p))
+
+
+@dataclass(frozen=True)
+class HeatPass(Pass):
+    """Step 6: T^{n+1} = T^n + dt dT/dt on free fluid particles (not walls, not T_fixed); in an outflow
+    zone (T None) dT/dt = 0, in an inflow zone T is held at the zone's value."""
+
+    dt: float
+    zones: tuple
+    reads = ("r", "T", "dTdt")
+    writes = ("T",)
+    at_rest = False
+
+    @classmethod
+    def build(cls, scene, numerics, c):
+        return cls(c.dt, tuple(scene.T_zones)) if scene.effects.heat else None
+
+    def __call__(self, f, ctx, idx, step):
+        free = jnp.asarray(ctx.fluid) & ~jnp.asarray(ctx.T_fixed)
+        rate = f.dTdt
+        for zone in self.zones:
+            if zone.T is None:
+                rate = jnp.where(zone.inside(f.r), 0.0, rate)
+        T = f.T + self.dt * jnp.where(free, rate, 0.0)
+        for zone in self.zones:
+            if zone.T is not None:
+                T = jnp.where(free & zone.inside(f.r), zone.T, T)
+        return f.replace(T=T)

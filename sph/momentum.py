@@ -62,6 +62,10 @@ class Momentum:
     eta: float
     tvf: bool = False
 
+    @property
+    def reads(self) -> tuple:
+        return ("r", "rho", "p", "mass", "vol", "u_visc") + (("v_stress",) if self.tvf else ())
+
     def __call__(self, pp, i, j):
         return Rates(dudt=acceleration(pp, i, j, self.eta, self.tvf))
 
@@ -71,6 +75,7 @@ class BackgroundPressure:
     """Force-pass term: the TVF background-pressure acceleration of the transport velocity, eq. 13."""
 
     p_b: float
+    reads = ("r", "mass", "vol")
 
     def __call__(self, pp, i, j):
         return Rates(dvdt=background_acceleration(pp, i, j, self.p_b))
@@ -83,6 +88,7 @@ class ArtificialViscosity:
     alpha: float
     h: float
     c_ref: float
+    reads = ("r", "rho", "mass", "u_visc")
 
     def __call__(self, pp, i, j):
         return Rates(dudt=artificial_viscosity(pp, i, j, self.alpha, self.h, self.c_ref))

@@ -79,6 +79,10 @@ class RiemannContinuity:
     rho_of_p: Optional[Callable] = None
     walls: bool = False
 
+    @property
+    def reads(self) -> tuple:
+        return ("r", "rho", "p", "u", "mass") + (("wall", "normal", "g") if self.walls else ())
+
     def __call__(self, pp, i, j):
         return i.rho + self.dt * continuity(pp, i, j, self.c_ref, self.rho_of_p, self.walls)
 
@@ -92,6 +96,10 @@ class RiemannMomentum:
     eta_limiter: float
     rho_of_p: Optional[Callable] = None
     walls: bool = False
+
+    @property
+    def reads(self) -> tuple:
+        return ("r", "rho", "p", "u", "mass") + (("wall", "normal", "g", "u_visc") if self.walls else ())
 
     def __call__(self, pp, i, j):
         return Rates(dudt=acceleration(pp, i, j, self.eta, self.c_ref, self.eta_limiter, self.rho_of_p, self.walls))

@@ -55,7 +55,7 @@ def make_chunk(step_fn, length: int, guard=None):
         (state, nbrs, n_done, overflow, _), _ = jax.lax.scan(body, init, None, length=length)
         return state, nbrs, n_done, overflow
 
-    chunk.guard = guard
+    chunk.guard, chunk.length = guard, length
     return chunk
 
 
@@ -65,9 +65,10 @@ def advance(chunk, neighbors, state, nbrs, step0: int, n: int, max_reallocations
 
     A step refused by the chunk's guard raises the guard's diagnosis (a `SimulationError`: the step,
     the particle, its position, the likely cause; `.state` is the last good state). More than
-    `max_reallocations` overflows in a row raise `NeighborOverflow` (diagnosed by the guard if any)."""
+    `max_reallocations` overflows in a row raise `NeighborOverflow` (diagnosed by the guard if any).
+    `n` may exceed the chunk's length: the chunk is called again until n steps are done."""
     done_total, reallocs = 0, 0
-    guard = getattr(chunk, "guard", None)
+    guard, length = getattr(chunk, "guard", None), getattr(chunk, "length", None)
     while done_total < n:
         state, nbrs, done, overflow = chunk(state, nbrs, step0 + done_total, n - done_total)
         done_total += int(done)
@@ -81,7 +82,7 @@ def advance(chunk, neighbors, state, nbrs, step0: int, n: int, max_reallocations
                                        "typically the start of a blow-up (check numerics.dt / numerics.cfl)",
                                        step=step0 + done_total + 1, state=state, nbrs=nbrs)
             nbrs = neighbors.allocate(state.r)
-        elif done_total < n:  # the guard refused the next step
+        elif done_total < n and (length is None or int(done) < length):  # the guard refused the next step
             raise guard.diagnose(state, nbrs, step0 + done_total + 1)
     return state, nbrs, reallocs
 

@@ -27,6 +27,9 @@ class Scene:
     T_fixed     (N,) bool, particles whose temperature is held at T (Dirichlet segments)
     body_force  a space-dependent body force (sph.forces), instead of effects.gravity
     T_zones     tuple of sph.heat.TemperatureZone (inflow / outflow slabs of the temperature)
+    mass        (N,) particle masses; None: rho_ref dx^dim for every particle (`particle_mass`)
+    phase       (N,) int phase (material index) of every particle, for effects between phases (e.g.
+                surface tension); None: one phase, 0
     """
 
     name: str
@@ -42,6 +45,8 @@ class Scene:
     T_fixed: Optional[np.ndarray] = None
     body_force: Optional[object] = None
     T_zones: tuple = ()
+    mass: Optional[np.ndarray] = None
+    phase: Optional[np.ndarray] = None
 
     def __post_init__(self):
         if not (isinstance(self.dx, (int, float, np.floating)) and math.isfinite(self.dx) and self.dx > 0):
@@ -66,6 +71,14 @@ class Scene:
             raise ConfigError(f"scene {self.name}: no fluid particles")
         self._check_walls()
         self._check_heat()
+        if self.mass is not None and (np.shape(self.mass) != (n,) or not np.all(np.isfinite(self.mass))
+                                      or np.any(np.asarray(self.mass) <= 0)):
+            raise ConfigError(f"scene {self.name}: mass must be ({n},) positive finite values, got shape "
+                              f"{np.shape(self.mass)}")
+        if self.phase is not None and (np.shape(self.phase) != (n,) or not np.issubdtype(np.asarray(self.phase).dtype,
+                                                                                          np.integer)):
+            raise ConfigError(f"scene {self.name}: phase must be ({n},) integers, got {np.asarray(self.phase).dtype} "
+                              f"of shape {np.shape(self.phase)}")
         if self.body_force is not None and self.effects.gravity is not None:
             raise ConfigError(f"scene {self.name}: declares both effects.gravity and a body_force; keep one")
 
@@ -135,6 +148,18 @@ class Scene:
     @property
     def n(self) -> int:
         return self.r.shape[0]
+
+    @property
+    def particle_mass(self) -> np.ndarray:
+        """(N,) masses: `mass`, or rho_ref dx^dim (the lattice's volume times the reference density)."""
+        if self.mass is not None:
+            return np.asarray(self.mass, float)
+        return np.full(self.n, self.material.rho_ref * self.dx**self.dim)
+
+    @property
+    def phases(self) -> np.ndarray:
+        """(N,) int phases (`phase`, or 0 everywhere)."""
+        return np.asarray(self.phase) if self.phase is not None else np.zeros(self.n, np.int32)
 
     @property
     def wall_mask(self) -> np.ndarray:

@@ -2,9 +2,8 @@
 
     constants = derive(scene, numerics)               kernel, EoS, c_ref, p_b, body force, dt
     refuse what cannot give a correct result          sph.checks (resolution, memory; dt warning)
-    terms = choose_terms(scene, numerics, constants)  sph.terms: the terms of each pass, from the effects
-    passes = Passes.of(scene, constants, terms)       sph.step: the pair passes, then
-    state_at, step_fn                                 kick, drift and the passes in order
+    passes = choose_passes(scene, numerics, c)        sph.registry: the ordered pass list of the effects
+    state_at, step_fn                                 sph.step: kick, drift, neighbours, the passes in order
 
 Only the declared effects are traced into the step: a scene without TVF carries no TVF terms, one
 without gravity adds no body force, one with summation density never evaluates the continuity sum,
@@ -26,10 +25,10 @@ from .config import Numerics
 from .constants import derive
 from .diagnostics import StepGuard
 from .neighbors import NeighborSearch, make_neighbor_search
-from .pairs import pair_geometry
+from .passes import Context
+from .registry import choose_passes
 from .scene import Scene
-from .step import Passes, state_at_fn, step_fn_of
-from .terms import choose_terms
+from .step import state_at_fn, step_fn_of
 from .views import Particles, whole_list_pairs
 
 
@@ -42,6 +41,7 @@ class Solver:
                                                     carries `step_fn.guard` (= `guard`)
     state_at(r, u, nbrs) -> state                   traceable: the state init_fn builds at positions
                                                     `r`, velocities `u`, with a given neighbour list
+    passes                                          the ordered pass list of the step (sph.registry)
     pairs_fn(r, nbrs) -> Pairs                      the pair geometry of the whole list (for analysis)
     sweep_fn(term, nbrs, **fields)                  a term's per-particle results over the list, in
                                                     blocks, as a pass of the step evaluates it
@@ -64,6 +64,7 @@ class Solver:
     step_fn: Callable
     state_at: Callable
     pairs_fn: Callable
+    passes: tuple = ()
     sweep_fn: Callable = None
     c_ref: float = float("nan")
     guard: StepGuard = None
@@ -84,15 +85,14 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics(), extra_terms=()) 
         warn_fixed_dt(scene, c.dt, c.limits)
     nsearch = make_neighbor_search(scene.domain, c.kernel.cutoff, c.skin, numerics.capacity_multiplier,
                                    backend=numerics.neighbor_search)
-    passes = Passes.of(scene, c, choose_terms(scene, numerics, c, extra_terms))
-    state_at, step_fn = state_at_fn(passes), step_fn_of(passes, nsearch)
+    passes, ctx = choose_passes(scene, numerics, c, extra_terms), Context.of(scene, c)
+    state_at, step_fn = state_at_fn(scene, c, passes, ctx), step_fn_of(scene, c, passes, ctx, nsearch)
 
     def pairs_fn(r, nbrs):
         return whole_list_pairs(r, nbrs.idx, scene.domain, c.margin, c.kernel)
 
     def sweep_fn(term, nbrs, **fields):
-        geometry = partial(pair_geometry, domain=scene.domain, margin=c.margin, kernel=c.kernel)
-        return evaluate(term, Particles(**fields), nbrs.idx, geometry)
+        return evaluate(term, Particles(**fields), nbrs.idx, ctx.geometry)
 
     def init_fn():
         r = jnp.asarray(scene.r, c.dtype)
@@ -107,4 +107,4 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics(), extra_terms=()) 
     step_fn.guard = guard
     return Solver(scene=scene, numerics=numerics, kernel=c.kernel, eos=c.eos, dt=c.dt, dt_limits=c.limits,
                   p_b=c.p_b, dtype=c.dtype, neighbors=nsearch, init_fn=init_fn, step_fn=step_fn, state_at=state_at,
-                  pairs_fn=pairs_fn, sweep_fn=sweep_fn, c_ref=c.c_ref, guard=guard, memory_estimate=memory)
+                  pairs_fn=pairs_fn, passes=passes, sweep_fn=sweep_fn, c_ref=c.c_ref, guard=guard, memory_estimate=memory)

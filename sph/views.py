@@ -35,6 +35,8 @@ class Particles:
     wall       (N,) bool, wall particle
     normal     (N, dim) wall normal (into the fluid)
     g          (N, dim) body force at the particle
+    phase      (N,) phase (material index) of the particle, as a float (`Scene.phase`)
+    aux        (N,) or (N, dim) an intermediate result a pass computed for its own next sweep
     """
 
     r: Optional[jax.Array] = None
@@ -51,6 +53,8 @@ class Particles:
     wall: Optional[jax.Array] = None
     normal: Optional[jax.Array] = None
     g: Optional[jax.Array] = None
+    phase: Optional[jax.Array] = None
+    aux: Optional[jax.Array] = None
 
     def columns(self) -> "Particles":
         """Vector fields split into PVecs of (N,) columns, once per pass (not once per block)."""

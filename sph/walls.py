@@ -13,16 +13,18 @@ force evaluation each wall particle w takes its state from its fluid neighbours 
 with a_w = 0 (walls do not accelerate). u~_w enters only the viscous term and the TVF stress; the
 continuity equation sees the prescribed u_w. A wall particle with no fluid neighbour gets p_w = 0
 and u^_w = 0 (it does not act on any fluid particle either, by kernel symmetry).
-The wall pass (`WallExtrapolation`) evaluates these sums for every particle of a block, reading
-particle i from `i` and its neighbours from `j` (`sph.views`); the solver keeps the wall rows.
+The wall term (`WallExtrapolation`) evaluates these sums for every particle of a block, reading
+particle i from `i` and its neighbours from `j` (`sph.views`); the wall pass (`WallPass`, step 4)
+keeps the wall rows.
 """
 from dataclasses import dataclass
-from typing import Optional
+from typing import Callable, Optional
 
 import jax
 import jax.numpy as jnp
 
 from .pairs import sum_j
+from .passes import Pass
 from .pvec import PVec, dot
 
 
@@ -102,7 +104,44 @@ class WallExtrapolation:
     floor: float = 0.0
     heat: bool = False
 
+    @property
+    def reads(self) -> tuple:
+        return ("r", "fluid", "rho", "p", "u", "g") + (("T",) if self.heat else ())
+
     def __call__(self, pp, i, j):
         fw = fluid_weights(pp, j, self.floor)
         return WallValues(p=pressure(pp, fw, i, j), u_hat=extrapolate(fw, j.u),
                           T=extrapolate(fw, j.T) if self.heat else None)
+
+
+@dataclass(frozen=True)
+class WallPass(Pass):
+    """Step 4: wall particles take p, rho = EoS^-1(p), the viscous velocity u~ (no slip, or free slip
+    with `slip`) and, with heat, T (but where T is held fixed) from their fluid neighbours; the TVF
+    stress sees u~ on walls too (`v_stress`). Fluid rows are unchanged."""
+
+    term: Callable
+    rho_of_p: Callable
+    slip: bool
+    writes = ("rho", "p", "u_visc", "v_stress", "T")
+
+    @classmethod
+    def build(cls, scene, numerics, c):
+        fx = scene.effects
+        if fx.walls is None:
+            return None
+        return cls(WallExtrapolation(c.weight_floor, fx.heat), c.eos.rho, fx.walls == "free_slip")
+
+    @property
+    def reads(self) -> tuple:
+        return self.term.reads + ("v",)
+
+    def __call__(self, f, ctx, idx, step):
+        wall = jnp.asarray(ctx.wall)
+        got = ctx.sweep(self.term, idx, f, self.term.reads)
+        p = jnp.where(wall, got.p, f.p)
+        normal = jnp.asarray(ctx.normal, ctx.c.dtype) if self.slip else None
+        u_visc = jnp.where(wall[:, None], velocity(got.u_hat, f.u, normal), f.u)
+        T = jnp.where(wall & ~jnp.asarray(ctx.T_fixed), got.T, f.T) if f.T is not None else None
+        return f.replace(rho=jnp.where(wall, self.rho_of_p(p), f.rho), p=p, u_visc=u_visc,
+                         v_stress=jnp.where(wall[:, None], u_visc, f.v), T=T)
