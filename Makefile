@@ -4,19 +4,19 @@ PROFILE ?= paper
 PY      := .venv/bin/python
 VENV    := .venv/.stamp
 RESULTS := results/$(PROFILE)
-# Run steps always call their run script (FORCE): the script's own cache (sph.harness.runs) decides what
+# Run steps always call their run script (FORCE): the script's own cache (lab.runs) decides what
 # re-runs, from fingerprints of the config and of exactly the code that can change the numbers, and
 # notices damaged or incomplete outputs. A run step touches its stamp only when something changed,
 # so the figures that depend on the stamp re-plot only then.
 FORCE:
 
 # Deliverables (figures, metrics tables, the atlas) are verified on every make, by one mechanism
-# (sph.harness.deliver): each deliverable rule is FORCE'd and its recipe is `$(DELIVER) <command>`,
+# (lab.deliver): each deliverable rule is FORCE'd and its recipe is `$(DELIVER) <command>`,
 # with its outputs in the target-specific OUTS. DELIVER re-makes the outputs only when the manifest
 # written beside them (every input's digest: the run stamps, which list exactly the current runs, the
 # scripts, the files the script read; every output's digest) differs from now: a method or dx removed
 # from a profile, a re-run, a truncated metrics.csv or a missing figure. Otherwise one line, "up to date".
-DELIVER = $(PY) -m sph.harness.deliver $(OUTS) --from $(filter-out FORCE,$^) --
+DELIVER = $(PY) -m lab.deliver $(OUTS) --from $(filter-out FORCE,$^) --
 
 
 .PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
@@ -81,7 +81,7 @@ bench: $(VENV)
 # docs/time_estimates.yaml), then builds the paper targets in dependency order, the stability
 # matrix, then the atlas (it gathers every run record) and the report. Every run step is resumable
 # (its script's cache), and `make -j2 all` runs independent targets side by side: a run folder is
-# locked while written (sph.harness.lock). Table 1 / Fig. 3 need a GPU in the paper profile: without
+# locked while written (lab.lock). Table 1 / Fig. 3 need a GPU in the paper profile: without
 # one they are made in the `cpu` profile (SITL_PROFILE), which the report shows labelled as such.
 PAPER_TARGETS := fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10
 SITL_TARGETS  := table1 fig3
@@ -119,21 +119,21 @@ readme-tables: | $(VENV)
 
 include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
 
-# --- experiment folders of the protocol (sph.harness.experiment): config.yaml + study.py + plot_<name>.py
+# --- experiment folders of the protocol (lab.experiment): config.yaml + study.py + plot_<name>.py
 # One rule set for every such folder, whatever its name (a copy is `make <copy>`): the run step calls the
 # harness, whose cache re-runs exactly what changed, and stamps the current runs; each plot_<name>.py makes
 # <results>/<folder>/<name>.{png,pdf} through $(DELIVER), re-plotting only when the runs or the script change.
 PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py))
 define protocol_rules
 $(RESULTS)/$(notdir $(1))/runs.done: FORCE | $(VENV)
-	$$(PY) -m sph.harness.stamp $$@ $$(dir $$@) -- $$(PY) -m sph.harness.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS)
+	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS)
 $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p)))))
 .PHONY: $(notdir $(1))
 $(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(RESULTS)/$(notdir $(1))/$(patsubst plot_%.py,%,$(notdir $(p))).png)
 endef
 define protocol_plot
 $(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf: OUTS := $(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf
-$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf &: $(RESULTS)/$(notdir $(1))/runs.done $(2) sph/harness/figures.py FORCE | $(VENV)
+$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf &: $(RESULTS)/$(notdir $(1))/runs.done $(2) lab/figures.py FORCE | $(VENV)
 	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS)
 endef
 $(foreach d,$(PROTOCOL_DIRS),$(eval $(call protocol_rules,$(d))))

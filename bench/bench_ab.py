@@ -103,7 +103,7 @@ def compare(case, ref_path, steps, repeats):
     from peer_protocol import Worker, interleave
 
     env = dict(os.environ)
-    from sph.harness.xla_cpu import set_cpu_defaults
+    from sph.xla_cpu import set_cpu_defaults
 
     set_cpu_defaults()          # the same XLA flags for both sides (the old tree set them on import)
     env["XLA_FLAGS"] = os.environ.get("XLA_FLAGS", "")

@@ -3,7 +3,7 @@
 The same scene is timed with and without one extra declared effect that has (almost) nothing to do:
 heat with a uniform temperature, or a small artificial viscosity in a tank at rest. The difference
 is the price of evaluating the effect; a scene that does not declare it never traces it (see
-tests/test_effects.py), so it pays nothing. Timings share the machine: compare rows of one run.
+tests/core/test_effects.py), so it pays nothing. Timings share the machine: compare rows of one run.
 
     python bench/bench_effects.py [--steps 200]
 """
@@ -61,6 +61,6 @@ def main():
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from lab.cli import main_guard
 
     main_guard(main)  # sets XLA's CPU defaults first

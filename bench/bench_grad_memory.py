@@ -13,7 +13,7 @@ Each configuration runs in a fresh subprocess, which reports
            through /proc/self/clear_refs after compilation; where that is refused, ru_maxrss after
            the run minus ru_maxrss after compilation, which can under-read if compilation peaked higher)
   compile_s, run_s   compilation, and one gradient evaluation (forward + backward)
-  other_load   other work on the machine during run_s, in cores (sph.harness.other_load; 0 idle)
+  other_load   other work on the machine during run_s, in cores (lab.other_load; 0 idle)
 
 Configurations whose estimate exceeds --limit-gb are compiled but not run. Table printed and written
 to results/bench/grad_memory.csv (--quick: results/bench/grad_memory_quick.csv), which `make snapshot`
@@ -81,7 +81,7 @@ def measure_one(dx, n_steps, checkpoint, dtype, limit_gb):
         base_kb, how = _rss_kb("VmRSS"), "clear_refs"
     except OSError:
         base_kb, how = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, "ru_maxrss"
-    from sph.harness.other_load import OtherLoad
+    from lab.other_load import OtherLoad
 
     t0 = time.perf_counter()
     with OtherLoad() as load:  # other work on the machine while the gradient was timed, in cores
@@ -113,7 +113,7 @@ def main():
     if args.one:
         print("RESULT " + json.dumps(measure_one(**json.loads(args.one))), flush=True)
         return
-    from sph.harness.xla_cpu import set_cpu_defaults
+    from sph.xla_cpu import set_cpu_defaults
 
     set_cpu_defaults()  # in XLA_FLAGS, which the measuring children inherit
     import pandas as pd

@@ -91,6 +91,6 @@ def main():
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import main_guard
+    from lab.cli import main_guard
 
     main_guard(main)  # sets XLA's CPU defaults first

@@ -107,8 +107,8 @@ YNN_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 
 
 def xla_cpu_defaults():
-    """The entry points' XLA CPU defaults (sph.harness.xla_cpu), before the first JAX computation."""
-    from sph.harness.xla_cpu import set_cpu_defaults
+    """The entry points' XLA CPU defaults (sph.xla_cpu), before the first JAX computation."""
+    from sph.xla_cpu import set_cpu_defaults
 
     set_cpu_defaults()
 

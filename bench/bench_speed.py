@@ -107,7 +107,7 @@ def main():
         dim, side, steps, method, rounds = args.child
         child(int(dim), int(side), int(steps), method, int(rounds))
         return
-    from sph.harness.xla_cpu import set_cpu_defaults
+    from sph.xla_cpu import set_cpu_defaults
 
     set_cpu_defaults()  # in XLA_FLAGS, which the children (either checkout's sph) inherit
     head = f"{'case':10s} {'method':8s} {'N':>7s} {'K':>4s} {'ms/step min':>11s} {'median':>8s} {'peak GB':>7s}"

@@ -339,6 +339,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

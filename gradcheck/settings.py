@@ -5,9 +5,9 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import digest
-from sph.harness.layout import Study
+from lab.configtools import load_profile, require, require_finite, to_mapping
+from lab.keys import digest
+from lab.layout import Study
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -127,7 +127,7 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+# -- paths and code key (lab.layout) -------------------------------------------------------
 STUDY = Study("gradcheck", HERE)
 """results/<profile>/gradcheck: the computed gradients and tables (metrics.csv among them); the code
 key of settings.py and run.py with the sph modules they and the solver import."""

@@ -19,7 +19,7 @@ import pandas as pd  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from sph.harness.figures import save_figure  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 
 try:  # noqa: E402
     from . import scene as cube
@@ -94,6 +94,6 @@ def plot(exp: "S.Experiment", results) -> Path:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import experiment_main
+    from lab.cli import experiment_main
 
     experiment_main(plot, S.load, __doc__)

@@ -1,6 +1,6 @@
 # Inverse problem, paper Fig. 2 (inverse/README.md).
 # Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see sph.harness.runs) through sph.harness.stamp, whose
+# always call their run script (its cache decides what re-runs, see lab.runs) through lab.stamp, whose
 # stamp changes only when an output changed.
 # The optimizations (one stamp for all) depend on the config, the scripts they use and the core;
 # run.py itself skips when its outputs were made from the same inputs. The figure depends on the
@@ -12,12 +12,12 @@ FIG2_OUT     := $(addprefix $(RESULTS)/fig2/,fig2.png fig2.pdf metrics.csv summa
 .PHONY: fig2 inverse
 
 $(INVERSE_RUNS): FORCE | $(VENV)
-	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(INVERSE)/run.py --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m lab.stamp $@ $(dir $@) -- $(PY) $(INVERSE)/run.py --profile $(PROFILE) --results $(RESULTS)
 
 # the optimizations and their metrics only
 inverse: $(INVERSE_RUNS)
 
 fig2: $(FIG2_OUT)
 $(FIG2_OUT): OUTS := $(FIG2_OUT)
-$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py sph/harness/figures.py FORCE | $(VENV)
+$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py lab/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(INVERSE)/plot.py --profile $(PROFILE) --results $(RESULTS)

@@ -44,8 +44,8 @@ import optax
 import pandas as pd
 
 import sph
-from sph.harness.configtools import to_mapping
-from sph.harness.keys import digest
+from lab.configtools import to_mapping
+from lab.keys import digest
 from sph.diagnostics import SimulationError
 from sph.rollout import scan_rollout
 try:
@@ -303,6 +303,6 @@ def summarize(exp: S.Experiment, table: pd.DataFrame) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import experiment_main
+    from lab.cli import experiment_main
 
     experiment_main(run_all, S.load, __doc__)

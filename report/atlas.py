@@ -1,7 +1,7 @@
 """The accuracy atlas's cheapest-setting table (the README's "error you accept" table): for each
 error level of the atlas, the cheapest 2D TGV run of the sweep that reaches it (wall time of the
 solve, with the cores other work kept busy meanwhile where the record has it:
-sph.harness.other_load), or the best run when none does. Read from results/<profile>/accuracy/runs.csv (written by
+lab.other_load), or the best run when none does. Read from results/<profile>/accuracy/runs.csv (written by
 `make accuracy`); every cell a trace into that file (row: the run's folder)."""
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,7 +13,7 @@ from .trace import Trace, read_table
 
 DEFAULT_LEVELS = (0.1, 0.03, 0.01, 0.003)
 OTHER_LOAD_NOTE = ("Other work meanwhile: the cores other processes kept busy, on average, while the run was "
-                   "timed (sph.harness.other_load). Near 0 the wall time is this machine's speed; above it the "
+                   "timed (lab.other_load). Near 0 the wall time is this machine's speed; above it the "
                    "run shared the cores and took longer than it would alone.")
 DEFAULT_ERROR = "u_max_mean"
 METHOD_NAMES = {"sph": "standard SPH", "tvf": "TVF", "riemann": "Riemann SPH"}

@@ -19,7 +19,7 @@ Only marked tables are touched; an unknown marker or a missing snapshot is an er
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
 sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
 interval and the paired comparisons. --check changes nothing and exits 1 when
-the README differs from what the snapshot gives (tests/test_report.py)."""
+the README differs from what the snapshot gives (tests/experiments/test_report.py)."""
 import argparse
 import difflib
 import os
@@ -30,7 +30,7 @@ from pathlib import Path
 import pandas as pd
 
 from sitl.fmt import ratio_digits
-from sph.harness import other_load
+from lab import other_load
 
 from . import atlas, paper
 
@@ -238,7 +238,7 @@ READMES = ("README.md", "sitl/README.md", "experiments/tgv2d/README.md", "experi
            "experiments/stability/README.md", "experiments/accuracy/README.md", "gradcheck/README.md",
            "inverse/README.md")
 """The READMEs (relative to the repository root) whose marked tables `make readme-tables` regenerates
-and tests/test_report.py checks against the committed snapshot."""
+and tests/experiments/test_report.py checks against the committed snapshot."""
 
 
 def main(argv=None) -> int:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sph.harness.other_load import cell
+from lab.other_load import cell
 
 from .readme_tables import METHODS, find_source, duration
 

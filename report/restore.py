@@ -19,7 +19,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from sph.harness.atomic import write_text
+from lab.atomic import write_text
 
 from . import paper, provenance, snapshot
 

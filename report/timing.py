@@ -1,7 +1,7 @@
 """Wall time and ms per step of a target's runs (from its metrics file), and the expected time of a
 target for `make all`'s plan: measured where earlier runs left their times, else the documented
 estimate (docs/time_estimates.yaml). `cells` writes the wall time (with the most other work any run
-ran beside, where every run measured it: sph.harness.other_load) and the ms per step of a target."""
+ran beside, where every run measured it: lab.other_load) and the ms per step of a target."""
 from pathlib import Path
 from typing import Optional
 
@@ -54,7 +54,7 @@ def _all_measured(f: Path, where: dict) -> bool:
 def cells(num, timing: dict) -> tuple:
     """(wall, ms per step) cells of a target's timing, `num(trace)` writing one traced number (the
     HTML page's or report.md's): the wall time with the compilation and, where the runs measured it,
-    the most other work any of them ran beside (sph.harness.other_load); ms per step as a range."""
+    the most other work any of them ran beside (lab.other_load); ms per step as a range."""
     wall = num(timing["wall"]) if "wall" in timing else "-"
     extra = [f"+ {num(timing['compile'])} compile"] if "compile" in timing else []
     if "load_max" in timing:

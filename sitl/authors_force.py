@@ -34,7 +34,7 @@ from sitl import model as M
 from sitl import settings as S
 from sitl.evaluate import KEYS, per_window, summary
 from sph.forces import ConstantForce
-from sph.harness.cli import profile_main
+from lab.cli import profile_main
 
 
 def uniform_force_model(exp: S.Experiment, data_train, case_fns):

@@ -47,7 +47,7 @@ the reason printed.
 
 Writes results/<profile>/sitl/cost.csv, cost.md (the same points as a table, which the READMEs
 show), cost.png (log-log MSE_20 against ms per coarse step) and a run record per point,
-sitl/cost/<name>/record.json (sph.harness.record's schema: experiment "sitl", err_mse20, err_mse5,
+sitl/cost/<name>/record.json (lab.record's schema: experiment "sitl", err_mse20, err_mse5,
 err_e_kin; wall_s is one 20-step rollout, 20 x the time per coarse step, ms_per_step the time per
 coarse step), which `make accuracy` gathers. cost.json keeps the inputs' key: a call with
 the same inputs (data, config, code, trained models' metrics) does nothing.
@@ -75,13 +75,13 @@ from sitl import generate
 from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
-from sph.harness import keys, runs, stamp
-from sph.harness.cli import profile_main
-from sph.harness.configtools import to_mapping
-from sph.harness.deliver import note_input
-from sph.harness.keys import digest
-from sph.harness.other_load import OtherLoad
-from sph.harness.record import RECORD_COLUMNS, save_record
+from lab import keys, runs, stamp
+from lab.cli import profile_main
+from lab.configtools import to_mapping
+from lab.deliver import note_input
+from lab.keys import digest
+from lab.other_load import OtherLoad
+from lab.record import RECORD_COLUMNS, save_record
 
 HERE = Path(__file__).resolve().parent
 CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py", "study.py")]
@@ -308,7 +308,7 @@ def interleaved_times(steppers: dict, repeats: int) -> dict:
 
 
 def record(exp: S.Experiment, p: Point, row: dict) -> dict:
-    """The run record of one point (sph.harness.record.RECORD_COLUMNS, then err_<name>, then extras): a "run"
+    """The run record of one point (lab.record.RECORD_COLUMNS, then err_<name>, then extras): a "run"
     is one 20-step test rollout, so wall_s = n_rollout_steps x the time per coarse step."""
     d, n = exp.data, exp.eval.n_rollout_steps
     s = row["ms_per_coarse_step"] / 1e3
@@ -506,7 +506,7 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
 def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str) -> None:
     """cost.csv, cost.md, cost.png, then cost.json (the rows, the key of their inputs and the digests of the
     two, checked on the next run) and the stamp `cost.done` listing the current points' record
-    folders (the atlas reads exactly those: `sph.harness.stamp.current_folders`)."""
+    folders (the atlas reads exactly those: `lab.stamp.current_folders`)."""
     out = S.out_dir(results)
     write_csv(rows, out / "cost.csv")
     (out / "cost.md").write_text(markdown(rows, exp, profile or Path(results).name))
@@ -518,7 +518,7 @@ def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str
 
 
 def stamp_points(results, rows: list) -> None:
-    """The stamp cost.done: the record folders of exactly the points in `rows` (sph.harness.stamp)."""
+    """The stamp cost.done: the record folders of exactly the points in `rows` (lab.stamp)."""
     cdir = S.cost_dir(results)
     stamp.update(S.out_dir(results) / "cost.done", cdir, noted=[cdir / r["name"] for r in rows])
 

@@ -40,9 +40,9 @@ from sitl import baseline
 from sitl import model as M
 from sitl import settings as S
 from sitl import study
-from sph.harness.cli import profile_main
-from sph.harness.configtools import to_mapping
-from sph.harness.keys import digest, files_digest
+from lab.cli import profile_main
+from lab.configtools import to_mapping
+from lab.keys import digest, files_digest
 
 HERE = Path(__file__).resolve().parent
 CODE = [HERE / f for f in ("divergence.py", "model.py", "common.py")]

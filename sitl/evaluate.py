@@ -33,11 +33,11 @@ from sitl import generate
 from sitl import integrity
 from sitl import settings as S
 from sitl import stats
-from sph.harness.cli import profile_main
-from sph.harness.io import OutputError
-from sph.harness.deliver import note_input
-from sph.harness.configtools import to_mapping
-from sph.harness.keys import digest, files_digest
+from lab.cli import profile_main
+from lab.io import OutputError
+from lab.deliver import note_input
+from lab.configtools import to_mapping
+from lab.keys import digest, files_digest
 
 HERE = Path(__file__).resolve().parent
 

@@ -40,9 +40,9 @@ from sph.lattice import cartesian, jitter
 from sph.rollout import allocate_covering, make_chunk
 from sitl import integrity
 from sitl import settings as S
-from sph.harness.cli import profile_main
-from sph.harness.io import OutputError
-from sph.harness.deliver import note_input
+from lab.cli import profile_main
+from lab.io import OutputError
+from lab.deliver import note_input
 
 SPLITS = ("train", "valid", "test")
 FILES = tuple(f"{s}.h5" for s in SPLITS) + ("metadata.json", "force.py")

@@ -1,10 +1,10 @@
 """SitL's files verified before they are trusted (issue 23, class 3).
 
 The dataset (sitl/generate.py) and each training's checkpoint (sitl/train.py) record the digest of
-every file they wrote (`sph.harness.stamp.file_digest`: content for small files, size and
+every file they wrote (`lab.stamp.file_digest`: content for small files, size and
 modification time for large ones). Before such a file is read again, `damaged` compares it with the
 record and `unreadable` opens it the way its reader will; a file that fails either is set aside
-(``<name>.stale-<n>``, `sph.harness.runs.set_aside`) with one line naming it, and what it belonged
+(``<name>.stale-<n>``, `lab.runs.set_aside`) with one line naming it, and what it belonged
 to is made again. Nothing is deleted: the newest set-aside copies stay beside the original.
 """
 import json
@@ -14,8 +14,8 @@ from typing import Optional
 
 import numpy as np
 
-from sph.harness.runs import set_aside
-from sph.harness.stamp import file_digest
+from lab.runs import set_aside
+from lab.stamp import file_digest
 
 CHECKPOINT_FILES = ("params_tree.pkl", "params_array.npy", "state_tree.pkl", "state_array.npy",
                     "opt_state.pkl", "metadata_ckp.json")

@@ -24,7 +24,7 @@ import numpy as np
 from sitl import generate
 from sitl import model as M
 from sitl import settings as S
-from sph.harness.cli import profile_main
+from lab.cli import profile_main
 
 
 def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, dtype: str = "float32") -> list:

@@ -19,9 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sitl import settings as S  # noqa: E402
-from sph.harness.cli import profile_main  # noqa: E402
-from sph.harness.io import OutputError  # noqa: E402
-from sph.harness.deliver import note_input  # noqa: E402
+from lab.cli import profile_main  # noqa: E402
+from lab.io import OutputError  # noqa: E402
+from lab.deliver import note_input  # noqa: E402
 
 ROWS = (("truth", "ground truth"), ("solver", "solver only"), ("gns", "GNS"), ("sitl", "SitL"))
 

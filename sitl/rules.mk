@@ -2,7 +2,7 @@
 # Included by the top-level Makefile, which defines PROFILE and RESULTS. Everything runs in .venv-lb
 # (our core on the same jax, plus LagrangeBench 0.2.0; this project installed editable, as in .venv).
 # The dataset depends on its config and on exactly the code that can change it: generate.py,
-# settings.py and the sph modules of their code fingerprint (sph.harness.keys, the closure of the
+# settings.py and the sph modules of their code fingerprint (lab.keys, the closure of the
 # solver's and their imports, the same files that sitl.settings.data_fingerprint hashes);
 # each model's metrics on the dataset, the model/training/evaluation scripts; Table 1 and Fig. 3 only
 # on the metrics / rollouts and their own script, so editing a plot or table script only re-plots.
@@ -15,11 +15,11 @@ SITL_DATA   := $(SITL_OUT)/data/2D_RPF/generate.json
 SITL_MODELS := solver gns sitl
 SITL_METRICS := $(foreach m,$(SITL_MODELS),$(SITL_OUT)/metrics/$(m).json)
 SITL_ENV    := env WANDB_MODE=disabled
-SITL_CODE   := $(shell python3 -P sph/harness/keys.py $(SITL)/generate.py $(SITL)/settings.py 2>/dev/null)
+SITL_CODE   := $(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/settings.py 2>/dev/null)
 
 .PHONY: fig3 table1 sitl-data sitl-cost sitl-study
 
-# Every SitL output is verified on every make through $(DELIVER) (sph.harness.deliver, as the SPH
+# Every SitL output is verified on every make through $(DELIVER) (lab.deliver, as the SPH
 # targets): the scripts note the files they trusted (dataset splits, checkpoints, rollouts, metrics);
 # one that differs from what was made re-runs its step, and the step itself compares each file with
 # the digests it recorded when it wrote them (sitl/integrity.py): a damaged one is set aside

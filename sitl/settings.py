@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import Any, Optional
 
 import sph
-from sph.harness.configtools import from_mapping, load_profile, merge, require, to_mapping
-from sph.harness.keys import code_fingerprint, digest, files_digest
+from lab.configtools import from_mapping, load_profile, merge, require, to_mapping
+from lab.keys import code_fingerprint, digest, files_digest
 from sph.relax import Relaxation
 
 HERE = Path(__file__).resolve().parent
@@ -391,7 +391,7 @@ def data_config_digest(exp: Experiment) -> str:
 
 def data_fingerprint(exp: Experiment) -> str:
     """Configuration + generator + the core code that can change the data (the sph modules of the
-    solver and of generate.py / settings.py, `sph.harness.keys.code_fingerprint`; sitl/rules.mk lists
+    solver and of generate.py / settings.py, `lab.keys.code_fingerprint`; sitl/rules.mk lists
     the same files as the dataset's prerequisites): a dataset is regenerated when this changes."""
     return digest({"data": to_mapping(exp.data),
                    "code": code_fingerprint([HERE / "generate.py", HERE / "settings.py"])})

@@ -46,9 +46,9 @@ from pathlib import Path
 from sitl import settings as S
 from sitl import stats
 from sitl.fmt import ratio_digits
-from sph.harness.cli import profile_main, select
-from sph.harness.configtools import merge
-from sph.harness.lock import folder_lock
+from lab.cli import profile_main, select
+from lab.configtools import merge
+from lab.lock import folder_lock
 
 HERE = Path(__file__).resolve().parent
 GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force")
@@ -142,7 +142,7 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
     The two reference trainings' own wall times are recorded beside it, for comparison only: they
     depend on what else the machine ran meanwhile."""
     from sitl import train, train_cost
-    from sph.harness.other_load import OtherLoad
+    from lab.other_load import OtherLoad
 
     side = study_dir(results) / "runs" / "gns_equal_cost" / "budget.json"
     if side.exists():
@@ -206,7 +206,7 @@ def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
 
 def authors_force_key(afexp: S.Experiment, own: Path) -> str:
     """What authors_force.json in `own` is made from: its dataset, model and eval settings, the code."""
-    from sph.harness.keys import digest, files_digest
+    from lab.keys import digest, files_digest
 
     return digest({"data": (S.data_dir(own) / "generate.json").read_text(), "model": dataclasses.asdict(afexp.model),
                    "eval": dataclasses.asdict(afexp.eval),
@@ -394,7 +394,7 @@ def _f(x, digits: int = 3) -> str:
 
 
 def _other_work(cores) -> str:
-    """', beside x cores of other work' when the budget's timing measured it (sph.harness.other_load)."""
+    """', beside x cores of other work' when the budget's timing measured it (lab.other_load)."""
     return "" if cores is None else f", beside {cores:.2g} cores of other work"
 
 

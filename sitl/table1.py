@@ -13,8 +13,8 @@ from pathlib import Path
 from sitl import settings as S
 from sitl import stats
 from sitl.fmt import ratio_digits
-from sph.harness.cli import profile_main
-from sph.harness.io import OutputError
+from lab.cli import profile_main
+from lab.io import OutputError
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
     "mse5": (1.7e-7, 6.7e-9, 3.3e-9),

@@ -23,9 +23,9 @@ from sitl import generate
 from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
-from sph.harness import runs
-from sph.harness.cli import profile_main
-from sph.harness.deliver import note_input
+from lab import runs
+from lab.cli import profile_main
+from lab.deliver import note_input
 
 
 def trainer_configs(exp: S.Experiment, run_name: str, kind: str):

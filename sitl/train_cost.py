@@ -36,7 +36,7 @@ from lagrangebench.utils import broadcast_from_batch, broadcast_to_batch
 from sitl import generate
 from sitl import settings as S
 from sitl import train as T
-from sph.harness.cli import profile_main
+from lab.cli import profile_main
 
 STEPS, WINDOWS, REPEATS = 10, 2, 3  # per timing: enough to average a step's jitter, minutes in all on cpu
 

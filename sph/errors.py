@@ -1,7 +1,7 @@
 """Configuration errors and value checks of the physics core (no YAML, no files).
 
 `ConfigError` names the bad key; `require` / `require_finite` are what config dataclasses call in
-`__post_init__`. The harness (`sph.harness.configtools`: YAML profiles) builds on these; the core never
+`__post_init__`. The harness (`lab.configtools`: YAML profiles) builds on these; the core never
 imports the harness.
 """
 import dataclasses

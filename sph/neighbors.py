@@ -9,7 +9,7 @@ caller must re-`allocate` outside `jit` (see `sph.rollout`).
 backend "cell_sort" (the default, `numerics.neighbor_search`): `sph.cell_list` (argsort by cell,
 per-cell-offset gathers with a running compaction; memory O(N K)). backend "jax_md":
 `jax_md.partition.neighbor_list`, kept as the reference implementation the cell list is tested
-against (tests/test_cell_list.py: identical pair sets). In 2D the two take the same time per step
+against (tests/core/test_cell_list.py: identical pair sets). In 2D the two take the same time per step
 (TGV dx 0.02; dx 0.01: jax-md 1.1x); in 3D jax-md's rebuild takes 5x as long and 14x the memory
 (16^3: 150 against 32 ms, 0.22 against 0.016 GB; bench/bench_neighbors.py).
 """

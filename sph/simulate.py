@@ -3,7 +3,7 @@
 `run(solver, state, nbrs, t_end, write_every, writer)` advances `write_every` steps per jitted chunk
 (`sph.rollout.make_chunk` + `advance`, so neighbour-list overflow re-allocates and never loses a
 step). After every chunk it records a frame (t, u_max, E_kin, max density error; positions and
-kept fields go to the optional writer, `sph.harness.io.TrajectoryWriter`) and overwrites its
+kept fields go to the optional writer, `lab.io.TrajectoryWriter`) and overwrites its
 checkpoint, so an interrupted run continues with `resume(solver, writer)` + `run(..., step0=step)`.
 
 Timing: the chunk is compiled ahead of every call with new shapes (`jit(...).lower(...).compile()`,

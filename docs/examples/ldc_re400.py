@@ -5,6 +5,8 @@ import sph
 from sph import simulate
 from sph.cases import ldc, ldc_reference
 
+sph.set_cpu_defaults()  # XLA's fast CPU path for the pair sums: call before any JAX computation
+
 dx, t_end = ([float(a) for a in sys.argv[1:]] + [0.02, 20.0][len(sys.argv) - 1:])[:2]
 scene, numerics = ldc.setup(dx, re=400, method="tvf")
 solver = sph.build_solver(scene, numerics)

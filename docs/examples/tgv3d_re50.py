@@ -6,6 +6,8 @@ import sph
 from sph import simulate
 from sph.cases import tgv3d, tgv3d_reference
 
+sph.set_cpu_defaults()  # XLA's fast CPU path for the pair sums: call before any JAX computation
+
 n, t_end, steps = ([float(a) for a in sys.argv[1:]] + [16, 2.0, 1000][len(sys.argv) - 1:])[:3]
 scene, numerics = tgv3d.setup(tgv3d.dx_for(int(n)), re=50, progress=False,
                               relaxation=dataclasses.replace(tgv3d.RELAXATION, steps=int(steps)))

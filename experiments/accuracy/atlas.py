@@ -1,11 +1,11 @@
 """The accuracy-cost atlas: every run record of a results folder side by side.
 
-Reads (never re-runs) the run records (record.json, sph.harness.runs) of the TGV sweep (run.py) and of the
+Reads (never re-runs) the run records (record.json, lab.runs) of the TGV sweep (run.py) and of the
 experiments in `gather` (cavity: Figs. 6-7, dam break: Fig. 8, heat-operator validation), plus the
 gradient check's metrics (gradcheck/: AD vs FD error against AD time). Writes, into
 results/<profile>/accuracy/:
 
-  runs.csv          every run record found (one schema: sph.harness.record.RECORD_COLUMNS + err_<name>)
+  runs.csv          every run record found (one schema: lab.record.RECORD_COLUMNS + err_<name>)
   accuracy.png/pdf  one panel per problem: error against wall time (log-log), a marker per method,
                     the Pareto front (the runs no other run beats in both error and time) drawn
   convergence.png   per problem: error against dx with the least-squares order per method, and wall
@@ -26,10 +26,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph.harness import stamp  # noqa: E402
-from sph.harness.deliver import note_input  # noqa: E402
-from sph.harness import other_load  # noqa: E402
-from sph.harness.figures import save_figure  # noqa: E402
+from lab import stamp  # noqa: E402
+from lab.deliver import note_input  # noqa: E402
+from lab import other_load  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
@@ -50,9 +50,9 @@ PROBLEMS = {  # problem -> (experiment of its records, error column, what the er
 
 def current_records(root: Path) -> list:
     """The record.json files of exactly the current runs below `root`: those in a folder that a run
-    stamp there lists (sph.harness.stamp: a run of a method, dx, kernel or dtype removed from its
+    stamp there lists (lab.stamp: a run of a method, dx, kernel or dtype removed from its
     profile is not), or every one when `root` has no stamp (an experiment run without make). The
-    stamps and records read are the atlas's inputs (sph.harness.deliver.note_input)."""
+    stamps and records read are the atlas's inputs (lab.deliver.note_input)."""
     if not root.exists():
         return []
     current = stamp.current_folders(root)
@@ -244,7 +244,7 @@ BUSY_CORES = 0.25
 
 
 def timing_line(t: pd.DataFrame) -> str:
-    """How the problem's runs were timed: how many beside other work (sph.harness.other_load), how
+    """How the problem's runs were timed: how many beside other work (lab.other_load), how
     many without a measurement (records made before it was recorded)."""
     load = pd.to_numeric(t["other_load"], errors="coerce") if "other_load" in t else pd.Series(np.nan, index=t.index)
     known = load.dropna()
@@ -262,7 +262,7 @@ def checkpointing_lines(csv: Path) -> list:
     """accuracy.md's section on what gradient checkpointing costs, from bench/bench_grad_memory.py's
     table (results/bench/grad_memory.csv: the gradient of E_kin after n steps of a 2D TGV w.r.t. the
     initial positions, plain reverse mode / sqrt(n) segments / nested). Checkpointing recomputes the
-    same forward steps, so it buys memory with time at no cost in accuracy: tests/test_gradients.py
+    same forward steps, so it buys memory with time at no cost in accuracy: tests/core/test_gradients.py
     checks equal gradients to round-off; here the gradient norms of the strategies are compared."""
     lines = ["## Gradients through long rollouts: what checkpointing costs", ""]
     note_input(csv)
@@ -302,6 +302,6 @@ def build(atlas: "S.Atlas", results) -> Path:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import experiment_main
+    from lab.cli import experiment_main
 
     experiment_main(build, S.load, __doc__)

@@ -1,7 +1,7 @@
 """The TGV sweep of the accuracy-cost atlas: every method x dx x dtype x kernel of the profile, each
-(kernel, dtype) as one 2D Taylor-Green study (sph.harness.tgv2d / tgv2d_runs, the code experiments/tgv2d
+(kernel, dtype) as one 2D Taylor-Green study (lab.tgv2d / tgv2d_runs, the code experiments/tgv2d
 runs too; its base profile read from experiments/tgv2d/config.yaml) with its own runs (cached,
-resumable: sph.harness.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
+resumable: lab.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
 the other problems of the atlas (cavity, dam break, heat) are not run here: atlas.py reads the run
 records their own experiments wrote.
 
@@ -9,9 +9,9 @@ records their own experiments wrote.
 """
 import time
 
-from sph.harness import tgv2d, tgv2d_runs
-from sph.harness.configtools import ConfigError, to_mapping
-from sph.harness.layout import Study
+from lab import tgv2d, tgv2d_runs
+from lab.configtools import ConfigError, to_mapping
+from lab.layout import Study
 
 try:
     from . import settings as S
@@ -65,6 +65,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -5,7 +5,7 @@ from typing import Optional
 
 import numpy as np
 
-from sph.harness.configtools import load_profile, require
+from lab.configtools import load_profile, require
 from sph.kernels import KERNELS
 from sph.precision import DTYPES
 
@@ -18,7 +18,7 @@ TGV_CONFIG = HERE.parent / "tgv2d" / "config.yaml"
 
 @dataclass(frozen=True)
 class TgvSweep:
-    """The TGV sweep: every method x dx x dtype x kernel, each a 2D Taylor-Green study (sph.harness.tgv2d).
+    """The TGV sweep: every method x dx x dtype x kernel, each a 2D Taylor-Green study (lab.tgv2d).
 
     base_profile  profile of experiments/tgv2d/config.yaml supplying material, numerics, relaxation
     kernels       kernel names (sph.kernels.KERNELS), each optionally with its own smoothing length

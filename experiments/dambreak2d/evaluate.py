@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 import sph
-from sph.harness import io, record, tables
+from lab import io, record, tables
 from sph.kernels import make_kernel
 try:
     from . import settings as S
@@ -236,6 +236,6 @@ def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import experiment_main
+    from lab.cli import experiment_main
 
     experiment_main(evaluate_all, S.load, __doc__)

@@ -5,7 +5,7 @@ back-wall height against Martin & Moyce (1952).
 
 Reads results/<profile>/dambreak2d/*/traj.h5, series.csv and metrics.csv (evaluate.py); writes
 results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy); with --gif PATH
-only an animation of the Fig. 8 column's pressure in the figure's colour range (sph.harness.animate).
+only an animation of the Fig. 8 column's pressure in the figure's colour range (lab.animate).
 
     python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--gif fig8.gif]
 """
@@ -20,9 +20,9 @@ from matplotlib.patches import Rectangle  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph.harness.figures import save_figure  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 import sph  # noqa: E402
-from sph.harness import animate, io  # noqa: E402
+from lab import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import evaluate as E
     from . import settings as S
@@ -153,6 +153,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -3,11 +3,11 @@
 For each column (config `columns`: the 2:1 column of Colagrossi & Landrini 2003 for the pressure
 history and Fig. 8, the square column of Martin & Moyce 1952 for the surge front) this writes
 
-  results/<profile>/dambreak2d/<column>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
+  results/<profile>/dambreak2d/<column>_dx<dx>/traj.h5        LagrangeBench layout (lab.io), + checkpoint
   results/<profile>/dambreak2d/<column>_dx<dx>/metadata.json
 
 with a frame every `frame_dt` (rounded to whole steps). The metrics are computed from these files by
-evaluate.py. Caching is sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the
+evaluate.py. Caching is lab.runs.run_cached's: a run whose traj.h5 is complete and was made from the
 same inputs (the simulation settings and the code that can change its numbers) is skipped; one that
 stopped part-way resumes from its checkpoint; a damaged or stale one is set aside and run again.
 
@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 import sph
-from sph.harness import cli, runs
+from lab import cli, runs
 from sph.cases import tank
-from sph.harness.configtools import to_mapping
+from lab.configtools import to_mapping
 try:
     from . import settings as S
 except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
@@ -92,6 +92,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -1,7 +1,7 @@
 """The droplet's Laplace test: the pressure jump against time per resolution (its ratio to sigma / R),
 the jump's error and the spurious currents against resolution, and the error against wall time.
 
-Reads the current runs and metrics.csv (sph.harness.experiment: refused, naming them, when a run of
+Reads the current runs and metrics.csv (lab.experiment: refused, naming them, when a run of
 the profile is missing or stale); writes <results>/droplet/laplace.{png,pdf}.
 
     python experiments/droplet/plot_laplace.py --profile smoke [--results results/smoke] [--out DIR]
@@ -13,8 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sph.cases import droplet  # noqa: E402
-from sph.harness.experiment import plot_main  # noqa: E402
-from sph.harness.figures import save_figure  # noqa: E402
+from lab.experiment import plot_main  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 
 
 def plot(exp, out):

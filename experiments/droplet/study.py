@@ -1,5 +1,5 @@
 """The droplet study: a 2D droplet at rest per resolution, its Laplace pressure jump and its spurious
-currents (sph.cases.droplet; the protocol is sph.harness.experiment's).
+currents (sph.cases.droplet; the protocol is lab.experiment's).
 
 Per run (one resolution, dx = 1 / n_side):
   jump            mean over frames t >= average_from of p_inside - p_outside, each side averaged
@@ -15,7 +15,7 @@ import numpy as np
 from sph.cases import droplet
 from sph.config import Numerics
 from sph.errors import require, require_finite
-from sph.harness.configtools import from_mapping, to_mapping
+from lab.configtools import from_mapping, to_mapping
 
 
 @dataclass(frozen=True)

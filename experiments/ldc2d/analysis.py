@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 
 from sph.cases import ldc_reference as ref
-from sph.harness import keys, record
+from lab import keys, record
 from sph.kernels import make_kernel
 from sph.state import FLUID, MOVING_WALL, WALL
 try:
@@ -156,7 +156,7 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
 def main(args):
     exp = S.load(args.profile)
     results = args.results
-    from sph.harness import io
+    from lab import io
     for dx in exp.dx:
         for m in exp.methods:
             st = io.trajectory_status(S.run_dir(results, m.name, dx) / "traj.h5")
@@ -169,6 +169,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__)

@@ -6,7 +6,7 @@ Fig. 6 uses the runs at figures.fig6's dx (paper: 0.02), Fig. 7 those at figures
 Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} (re-evaluating
 the runs first, so a changed `analysis` setting takes effect); writes results/<profile>/<fig>/
 <fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx); with --gif PATH only an animation
-of one method's run of that figure (--method, default tvf; sph.harness.animate).
+of one method's run of that figure (--method, default tvf; lab.animate).
 
     python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke] [--gif fig6.gif]
 """
@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from sph.cases import ldc_reference  # noqa: E402
-from sph.harness import animate, io  # noqa: E402
+from lab import animate, io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
 try:  # noqa: E402
     from . import analysis
@@ -126,6 +126,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -1,6 +1,6 @@
 # 2D lid-driven cavity, paper Figs. 6-7 (experiments/ldc2d/README.md).
 # Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see sph.harness.runs) through sph.harness.stamp, whose
+# always call their run script (its cache decides what re-runs, see lab.runs) through lab.stamp, whose
 # stamp changes only when an output changed.
 # Each figure has its own runs (fig6: figures.fig6's dx, fig7: figures.fig7's), one stamp per figure.
 # The runs depend on the config, settings.py, run.py and the core, so editing any of these re-runs
@@ -8,7 +8,7 @@
 # interrupted ones; LDC2D_FLAGS passes extra options to run.py.
 # The figures depend on the runs, analysis.py and plot.py: editing those (or the
 # `analysis` settings) re-evaluates and re-plots without re-running. fig6.gif animates the fig6 run of
-# LDC2D_GIF_METHOD (sph.harness.animate); editing sph/harness/animate.py re-renders only it.
+# LDC2D_GIF_METHOD (lab.animate); editing lab/animate.py re-renders only it.
 LDC2D     := experiments/ldc2d
 
 .PHONY: fig6 fig7 fig6-runs fig7-runs
@@ -20,16 +20,16 @@ ldc2d_no_background = @for f in $(RESULTS)/ldc2d/logs/*_$(1).pid; do \
 
 $(RESULTS)/ldc2d/fig6_runs.done: FORCE | $(VENV)
 	$(call ldc2d_no_background,fig6)
-	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig6 $(LDC2D_FLAGS)
+	$(PY) -m lab.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig6 $(LDC2D_FLAGS)
 
 $(RESULTS)/ldc2d/fig7_runs.done: FORCE | $(VENV)
 	$(call ldc2d_no_background,fig7)
-	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig7 $(LDC2D_FLAGS)
+	$(PY) -m lab.stamp $@ $(dir $@) -- $(PY) $(LDC2D)/run.py --profile $(PROFILE) --results $(RESULTS) --fig fig7 $(LDC2D_FLAGS)
 
 fig6-runs: $(RESULTS)/ldc2d/fig6_runs.done
 fig7-runs: $(RESULTS)/ldc2d/fig7_runs.done
 
-# Each figure rule runs on every make through $(DELIVER) (sph.harness.deliver): re-plotted only when
+# Each figure rule runs on every make through $(DELIVER) (lab.deliver): re-plotted only when
 # the figure's current runs (its stamp), the scripts or the figure's own files differ from what it was made from.
 FIG6_OUT := $(addprefix $(RESULTS)/fig6/,fig6.png fig6.pdf metrics.csv)
 FIG7_OUT := $(addprefix $(RESULTS)/fig7/,fig7.png fig7.pdf metrics.csv)
@@ -46,5 +46,5 @@ $(FIG7_OUT) &: $(RESULTS)/ldc2d/fig7_runs.done $(LDC2D)/config.yaml $(LDC2D)/ana
 
 LDC2D_GIF_METHOD ?= tvf
 $(RESULTS)/fig6/fig6.gif: OUTS := $(RESULTS)/fig6/fig6.gif
-$(RESULTS)/fig6/fig6.gif: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/plot.py sph/harness/animate.py FORCE | $(VENV)
+$(RESULTS)/fig6/fig6.gif: $(RESULTS)/ldc2d/fig6_runs.done $(LDC2D)/plot.py lab/animate.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(LDC2D)/plot.py --fig fig6 --profile $(PROFILE) --results $(RESULTS) --gif $@ --method $(LDC2D_GIF_METHOD)

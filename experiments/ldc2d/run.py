@@ -6,13 +6,13 @@ set-up) the wall particles of the top layers that lie beyond the side walls (the
 fixed walls, so the lid spans exactly the cavity width; `moving` is the full-width lid of JAX-SPH
 (why: sph.cases.ldc.LID_CORNERS). Each run writes
 
-  results/<profile>/ldc2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
+  results/<profile>/ldc2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (lab.io), + checkpoint
   results/<profile>/ldc2d/<method>_dx<dx>/metadata.json
   results/<profile>/ldc2d/<method>_dx<dx>/profiles.npz   centreline profiles (analysis.py)
-  results/<profile>/ldc2d/<method>_dx<dx>/record.json    the run record (sph.harness.runs), for `make accuracy`
+  results/<profile>/ldc2d/<method>_dx<dx>/record.json    the run record (lab.runs), for `make accuracy`
   results/<profile>/ldc2d/metrics.csv                    one row per run of the current config
 
-Caching is sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the same inputs
+Caching is lab.runs.run_cached's: a run whose traj.h5 is complete and was made from the same inputs
 (settings.run_fingerprint: the solver settings and only the code that can change the numbers, without
 docstrings) is skipped (only re-evaluated, itself cached on the analysis settings and code); one that
 stopped part-way resumes from its checkpoint; a damaged or stale one is set aside and run again.
@@ -28,9 +28,9 @@ import numpy as np
 
 import sph
 from sph import diagnostics
-from sph.harness import cli, keys, record, runs, tables
+from lab import cli, keys, record, runs, tables
 from sph.cases import ldc
-from sph.harness.configtools import to_mapping
+from lab.configtools import to_mapping
 try:
     from . import analysis
     from . import settings as S
@@ -158,6 +158,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -11,8 +11,8 @@ from typing import Optional
 
 import sph
 from sph.cases import ldc
-from sph.harness.configtools import from_mapping, load_profile, merge, require, require_agree, require_finite, to_mapping
-from sph.harness.keys import code_fingerprint, digest
+from lab.configtools import from_mapping, load_profile, merge, require, require_agree, require_finite, to_mapping
+from lab.keys import code_fingerprint, digest
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -181,7 +181,7 @@ def profiles_path(results, method: str, dx: float) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of the code that makes a trajectory: settings.py, run.py and the sph modules they and the
-    solver import (sph.harness.keys.code_fingerprint; docstrings and comments do not count)."""
+    solver import (lab.keys.code_fingerprint; docstrings and comments do not count)."""
     return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
 
 

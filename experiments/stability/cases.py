@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 import sph
 from sph import simulate
-from sph.harness import io
+from lab import io
 from sph.cases import ldc, tank, tgv
 from sph.domain import Domain
 from sph.lattice import cartesian, jitter

@@ -1,6 +1,6 @@
 # Stability suite (experiments/stability/README.md): `make stability [PROFILE=smoke]`.
 # Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see sph.harness.runs) through sph.harness.stamp, whose
+# always call their run script (its cache decides what re-runs, see lab.runs) through lab.stamp, whose
 # stamp changes only when an output changed.
 # The table depends on the config, the scripts, tgv2d's relaxation (used by the long TGV case) and
 # the core, so editing any of these re-runs run.py; run.py itself re-runs only the cases whose

@@ -9,7 +9,7 @@ goes on with the next case; any other exception becomes status "error" with its 
 
 Outputs (results/<profile>/stability/):
 
-  <case>/traj.h5       a few frames (LagrangeBench layout, sph.harness.io) + the checkpoint of the last good state
+  <case>/traj.h5       a few frames (LagrangeBench layout, lab.io) + the checkpoint of the last good state
   <case>/series.csv    the monitor's values at every diagnostic frame
   <case>/result.json   the case's metrics, info (dt limits, relaxation, traceback) and the fingerprint
   stability.csv        one row per case, in config order: metrics + criterion + passed
@@ -275,6 +275,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

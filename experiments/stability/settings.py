@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from sph.harness.configtools import (ConfigError, from_mapping, merge, profile_mapping, require, require_finite,
+from lab.configtools import (ConfigError, from_mapping, merge, profile_mapping, require, require_finite,
                                      require_name, to_mapping)
-from sph.harness.keys import code_fingerprint, digest
+from lab.keys import code_fingerprint, digest
 from sph.relax import Relaxation
 
 HERE = Path(__file__).resolve().parent
@@ -183,7 +183,7 @@ def markdown_path(results) -> Path:
 # -- fingerprints ---------------------------------------------------------------------------------
 def code_hash() -> str:
     """Hash of what produces a case's metrics: the solver's physics modules and those cases.py
-    imports (sph.relax among them), cases.py and settings.py (sph.harness.keys.code_fingerprint). run.py
+    imports (sph.relax among them), cases.py and settings.py (lab.keys.code_fingerprint). run.py
     (evaluation, table) is left out: it re-evaluates stored metrics and never changes them."""
     return code_fingerprint([HERE / n for n in ("settings.py", "cases.py")])
 

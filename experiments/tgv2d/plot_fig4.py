@@ -2,7 +2,7 @@
 (method `fig4_method`, default TVF, at the finest dx of the profile).
 
 Reads results/<profile>/tgv2d/<method>_dx<dx>/traj.h5; writes results/<profile>/fig4/fig4.{png,pdf}, or
-with --gif PATH only an animation of the same run (sph.harness.animate).
+with --gif PATH only an animation of the same run (lab.animate).
 
     python experiments/tgv2d/plot_fig4.py --profile smoke [--results results/smoke] [--gif fig4.gif]
 """
@@ -14,8 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph.harness.figures import figure_dir, save_figure  # noqa: E402
-from sph.harness import animate, io  # noqa: E402
+from lab.figures import figure_dir, save_figure  # noqa: E402
+from lab import animate, io  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
 except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
@@ -65,6 +65,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

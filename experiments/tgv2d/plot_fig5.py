@@ -14,8 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sph.harness import io  # noqa: E402
-from sph.harness.figures import copy_metrics, figure_dir, method_lines, save_figure  # noqa: E402
+from lab import io  # noqa: E402
+from lab.figures import copy_metrics, figure_dir, method_lines, save_figure  # noqa: E402
 from sph.cases import tgv  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -48,6 +48,6 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import figure_main
+    from lab.cli import figure_main
 
     figure_main(plot, S.load, __doc__, "fig5")

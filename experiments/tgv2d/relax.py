@@ -9,8 +9,8 @@ numerics, code) matches. run.py computes the same starts when they are missing.
 
     python experiments/tgv2d/relax.py --profile smoke [--results results/smoke]
 """
-from sph.harness.cli import profile_main
-from sph.harness.tgv2d_runs import relaxed_positions
+from lab.cli import profile_main
+from lab.tgv2d_runs import relaxed_positions
 
 try:
     from . import settings as S

@@ -1,14 +1,14 @@
 """Run the 2D Taylor-Green vortex for every (dx, method) of a profile and collect the metrics.
 
 For each spacing the relaxed positions (relax.py, cached) get the analytical TGV velocity; each
-method then runs to t_end (sph.harness.tgv2d_runs), writing
+method then runs to t_end (lab.tgv2d_runs), writing
 
-  results/<profile>/tgv2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
+  results/<profile>/tgv2d/<method>_dx<dx>/traj.h5        LagrangeBench layout (lab.io), + checkpoint
   results/<profile>/tgv2d/<method>_dx<dx>/metadata.json
-  results/<profile>/tgv2d/<method>_dx<dx>/record.json    the run record (sph.harness.record), for `make accuracy`
+  results/<profile>/tgv2d/<method>_dx<dx>/record.json    the run record (lab.record), for `make accuracy`
   results/<profile>/tgv2d/metrics.csv                    one row per run of the current config
 
-Caching and resuming are sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made
+Caching and resuming are lab.runs.run_cached's: a run whose traj.h5 is complete and was made
 from the same inputs (the profile settings, the relaxation and the code that can change the numbers)
 is skipped; one that stopped part-way resumes from its checkpoint; a damaged or stale one is set aside
 and run again. metrics.csv is rebuilt from the trajectories every time. The folder name (here tgv2d)
@@ -18,7 +18,7 @@ is the experiment's name: a copy of this folder under another name is an experim
 """
 import pandas as pd
 
-from sph.harness import cli, tgv2d_runs
+from lab import cli, tgv2d_runs
 
 try:
     from . import settings as S

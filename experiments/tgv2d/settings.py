@@ -1,13 +1,13 @@
 """Settings of the 2D Taylor-Green experiment: this folder's config.yaml read as a 2D Taylor-Green
-study (sph.harness.tgv2d: frozen, validated dataclasses and fingerprints), its name and its paths.
+study (lab.tgv2d: frozen, validated dataclasses and fingerprints), its name and its paths.
 The folder name is the experiment's name: a copy of this folder is an experiment of its own."""
 from pathlib import Path
 from typing import Optional
 
-from sph.harness import tgv2d
-from sph.harness.layout import Study, dx_tag
-from sph.harness.study import Method
-from sph.harness.tgv2d import Experiment  # noqa: F401  (the settings of this experiment)
+from lab import tgv2d
+from lab.layout import Study, dx_tag
+from lab.study import Method
+from lab.tgv2d import Experiment  # noqa: F401  (the settings of this experiment)
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -15,7 +15,7 @@ NAME = HERE.name
 CONFIG = HERE / "config.yaml"
 STUDY = Study(NAME, HERE)
 """results/<profile>/<NAME>/<method>_dx<dx>/ per run, relaxed_dx<dx>.npy starts and metrics.csv beside
-them; the code key of settings.py and the named scripts (sph.harness.layout)."""
+them; the code key of settings.py and the named scripts (lab.layout)."""
 
 
 def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
@@ -35,7 +35,7 @@ def relaxed_path(results, dx: float) -> Path:
     return STUDY.relaxed_path(results, dx_tag(dx))
 
 
-# -- fingerprints (sph.harness.tgv2d: the settings and the code that can change the numbers) ----------
+# -- fingerprints (lab.tgv2d: the settings and the code that can change the numbers) ----------
 def relax_fingerprint(exp: Experiment, dx: float) -> str:
     return tgv2d.relax_fingerprint(STUDY, exp, dx)
 

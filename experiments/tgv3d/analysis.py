@@ -12,7 +12,7 @@ reference and the deviations from it are sph.cases.tgv3d_reference's (which a sc
 import h5py
 import numpy as np
 
-from sph.harness import io, record
+from lab import io, record
 from sph.cases import tgv3d
 from sph.cases import tgv3d_reference as ref_mod
 

@@ -14,7 +14,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from sph.harness.figures import copy_metrics, figure_dir, method_lines, save_figure  # noqa: E402
+from lab.figures import copy_metrics, figure_dir, method_lines, save_figure  # noqa: E402
 try:  # noqa: E402
     from . import analysis, settings as S
 except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
@@ -50,6 +50,6 @@ def plot(exp: "S.Experiment", results, out=None) -> Path:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import figure_main
+    from lab.cli import figure_main
 
     figure_main(plot, S.load, __doc__, "fig9")

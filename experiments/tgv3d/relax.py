@@ -12,8 +12,8 @@ fingerprint (relaxation settings, material, numerics, code) matches.
 import dataclasses
 
 from sph.cases import tgv3d
-from sph.harness import runs
-from sph.harness.cli import profile_main
+from lab import runs
+from lab.cli import profile_main
 
 try:
     from . import settings as S

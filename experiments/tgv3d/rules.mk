@@ -2,7 +2,7 @@
 # Included by the top-level Makefile (PROFILE, PY, RESULTS, VENV, FORCE). Written for any folder
 # name: a copy of this folder, experiments/my_study, is `make my_study` (runs + figure into
 # results/<profile>/my_study/), with no edit here. The run step always calls run.py, whose cache
-# (sph.harness.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
+# (lab.runs) re-runs exactly what changed and repairs damaged outputs; its stamp changes only when an
 # output did, so the figure re-plots only then, or when its plot script or the analysis changes.
 _dir := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 _name := $(notdir $(_dir))
@@ -11,12 +11,12 @@ _figs := $(if $(filter tgv3d,$(_name)),$(RESULTS),$(RESULTS)/$(_name))
 
 $(_runs): DIR := $(_dir)
 $(_runs): FORCE | $(VENV)
-	$(PY) -m sph.harness.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
+	$(PY) -m lab.stamp $@ $(dir $@) -- $(PY) $(DIR)/run.py --profile $(PROFILE) --results $(RESULTS)
 
 _fig9 := $(_figs)/fig9/fig9.png $(_figs)/fig9/fig9.pdf $(_figs)/fig9/metrics.csv
 $(_fig9): DIR := $(_dir)
 $(_fig9): OUTS := $(_fig9)
-$(_fig9) &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py sph/harness/figures.py FORCE | $(VENV)
+$(_fig9) &: $(_runs) $(_dir)/plot_fig9.py $(_dir)/analysis.py lab/figures.py FORCE | $(VENV)
 	$(DELIVER) $(PY) $(DIR)/plot_fig9.py --profile $(PROFILE) --results $(RESULTS) --out $(dir $@)
 
 .PHONY: $(_name)

@@ -4,12 +4,12 @@ For each resolution n (n^3 particles, dx = 2 pi / n) the start (relaxed position
 cached, or the bare lattice, `start` in config.yaml) gets the analytical TGV velocity; each method
 then runs to t_end, writing
 
-  results/<profile>/tgv3d/<method>_n<n>/traj.h5        LagrangeBench layout (sph.harness.io), + checkpoint
+  results/<profile>/tgv3d/<method>_n<n>/traj.h5        LagrangeBench layout (lab.io), + checkpoint
   results/<profile>/tgv3d/<method>_n<n>/metadata.json
-  results/<profile>/tgv3d/<method>_n<n>/record.json    the run record (sph.harness.runs), for `make accuracy`
+  results/<profile>/tgv3d/<method>_n<n>/record.json    the run record (lab.runs), for `make accuracy`
   results/<profile>/tgv3d/metrics.csv                  one row per run of the current config
 
-Caching and resuming are sph.harness.runs.run_cached's: a run whose traj.h5 is complete and was made from the
+Caching and resuming are lab.runs.run_cached's: a run whose traj.h5 is complete and was made from the
 same inputs (the profile settings, the relaxation and the code that can change the numbers) is
 skipped; one that stopped part-way resumes from its checkpoint; a damaged or stale one is set aside
 and run again. metrics.csv is rebuilt from the trajectories every time (analysis.py, which is not part
@@ -21,9 +21,9 @@ import pandas as pd
 
 import sph
 from sph.cases import tgv3d
-from sph.harness import cli, record, runs, tables
-from sph.harness.configtools import to_mapping
-from sph.harness.study import run_spec, sweep
+from lab import cli, record, runs, tables
+from lab.configtools import to_mapping
+from lab.study import run_spec, sweep
 
 try:
     from . import analysis, relax, settings as S
@@ -100,6 +100,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

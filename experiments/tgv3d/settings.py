@@ -1,17 +1,17 @@
 """Settings of the 3D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
 the reference file (read by analysis.py: sph.cases.tgv3d_reference), and the fingerprints that decide whether a cached result still matches its inputs.
 What it shares with the 2D study (methods, paths, cache keys, relaxed starts, runs) is
-sph.harness.study's."""
+lab.study's."""
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import sph
 from sph.cases import tgv3d
-from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import digest
-from sph.harness.layout import Study
-from sph.harness.study import Method, check_methods, check_output
+from lab.configtools import load_profile, require, require_finite, to_mapping
+from lab.keys import digest
+from lab.layout import Study
+from lab.study import Method, check_methods, check_output
 from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
 HERE = Path(__file__).resolve().parent

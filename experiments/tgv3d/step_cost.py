@@ -9,7 +9,7 @@ count, which the relaxed start changes by a few per cent at most.
 """
 
 from sph import simulate
-from sph.harness import cli
+from lab import cli
 
 try:
     from . import run as R, settings as S
@@ -50,6 +50,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph.harness.figures import save_figure  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 from sph.state import FLUID  # noqa: E402
 try:  # noqa: E402
     from . import settings as S
@@ -100,6 +100,6 @@ def plot(exp: "S.Experiment", results) -> Path:
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import experiment_main
+    from lab.cli import experiment_main
 
     experiment_main(plot, S.load, __doc__)

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from sph.harness.figures import save_figure  # noqa: E402
+from lab.figures import save_figure  # noqa: E402
 
 try:  # noqa: E402
     from . import settings as S
@@ -80,6 +80,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__)

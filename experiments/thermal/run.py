@@ -30,9 +30,9 @@ import pandas as pd
 
 import sph
 from sph import heat, simulate
-from sph.harness import cli, io, record, runs, tables
+from lab import cli, io, record, runs, tables
 from sph.cases import channel
-from sph.harness.configtools import to_mapping
+from lab.configtools import to_mapping
 from sph.domain import Domain
 from sph.lattice import cartesian
 from sph.scene import Scene
@@ -366,6 +366,6 @@ def main(args):
 
 
 if __name__ == "__main__":
-    from sph.harness.cli import profile_main
+    from lab.cli import profile_main
 
     profile_main(main, __doc__, options)

@@ -12,9 +12,9 @@ from typing import Optional
 import numpy as np
 
 import sph
-from sph.harness.configtools import load_profile, require, require_finite, to_mapping
-from sph.harness.keys import digest
-from sph.harness.layout import Study, dx_tag
+from lab.configtools import load_profile, require, require_finite, to_mapping
+from lab.keys import digest
+from lab.layout import Study, dx_tag
 
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
@@ -160,7 +160,7 @@ def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experim
     return load_profile(Experiment, path, profile, overrides)
 
 
-# -- paths and code key (sph.harness.layout) -------------------------------------------------------
+# -- paths and code key (lab.layout) -------------------------------------------------------
 STUDY = Study(NAME, HERE)
 """results/<profile>/thermal/{sine,channel}_dx<dx>/ per run, metrics.csv beside them; the code key of
 settings.py and run.py with the sph modules they and the solver import."""

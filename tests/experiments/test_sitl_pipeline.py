@@ -1,0 +1,169 @@
+"""End to end: `make table1 fig3 PROFILE=smoke` (dataset generation with our solver, validation,
+GNS and SitL training with LagrangeBench's Trainer, test-set inference with its metrics, Table 1
+and Fig. 3), checked beyond finiteness (solver only against a bound from the data alone, the
+spread of every number, the paper's training settings), then an interrupted training continuing
+from its checkpoint. Runs .venv-lb through
+make; FAILS, not skips, when .venv-lb is missing."""
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "results" / "smoke"
+
+
+def _env():
+    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
+    env.pop("VIRTUAL_ENV", None)
+    return env
+
+
+def _frozen_mse5(path: Path, n_windows: int) -> float:
+    """MSE_5 of particles frozen at the last input frame, over the first test windows (22 frames:
+    2 inputs, 20 targets; one seed): the mean over k = 1..5 of the mean squared periodic
+    displacement between frame 1 and frame 1 + k of each window."""
+    box = np.array([1.0, 2.0])
+    with h5py.File(path / "test.h5", "r") as f:
+        pos = f["00000/position"][:].astype(np.float64)
+    out = []
+    for w in range(n_windows):
+        ref = pos[22 * w + 1]
+        for k in range(1, 6):
+            d = pos[22 * w + 1 + k] - ref
+            d -= box * np.round(d / box)
+            out.append(np.mean(np.sum(d**2, axis=-1)))
+    return float(np.mean(out))
+
+
+def test_table1_and_fig3_smoke():
+    if not (ROOT / ".venv-lb" / ".stamp").exists():
+        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+    proc = subprocess.run(["make", "table1", "fig3", "PROFILE=smoke"], cwd=ROOT, env=_env(), capture_output=True,
+                          text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    with (RESULTS / "table1" / "table1.csv").open() as f:
+        rows = {r["metric"]: r for r in csv.DictReader(f)}
+    for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
+        for m in ("solver", "gns", "sitl"):
+            v = float(rows[metric][f"{m}_ours"])
+            assert math.isfinite(v) and v >= 0, (metric, m, v)
+            assert float(rows[metric][f"{m}_paper"]) > 0
+    assert "Solver only (paper)" in (RESULTS / "table1" / "table1.md").read_text()
+    # the solver alone is never trained: no training noise, steps or wall time in its column
+    for metric in ("training noise_std", "training steps", "training wall s"):
+        assert rows[metric]["solver_ours"] == "" and rows[metric]["sitl_ours"] != "", (metric, rows[metric])
+    # every number with its spread: per-window values, a bootstrap interval around the mean
+    for m in ("solver", "gns", "sitl"):
+        met = json.loads((RESULTS / "sitl" / "metrics" / f"{m}.json").read_text())
+        assert met["n_rollouts"] == 2 and len(met["per_window"]["mse20"]) == 2 and met["window_seeds"] == [0, 0]
+        lo, hi = met["ci_mse20"]
+        assert lo <= met["mse20"] <= hi, (m, met["ci_mse20"])
+        assert float(rows["MSE_20"][f"{m}_lo"]) == pytest.approx(lo)
+    # solver only tracks the flow: its MSE_5 far below what particles frozen at the last input frame
+    # would score, computed from the test data alone (the frame-to-frame displacements)
+    frozen = _frozen_mse5(RESULTS / "sitl" / "data" / "2D_RPF", n_windows=2)
+    solver = json.loads((RESULTS / "sitl" / "metrics" / "solver.json").read_text())
+    assert frozen > 1e-5, frozen                              # the flow moves
+    assert solver["mse5"] < 1e-3 * frozen, (solver["mse5"], frozen)
+    # the paper's settings were the ones trained
+    for m, noise in (("gns", 1e-3), ("sitl", 1e-5)):
+        tr = json.loads((RESULTS / "sitl" / "ckp" / m / "train.json").read_text())
+        assert tr["noise_std"] == noise and tr["lr_start"] == 1e-3, (m, tr)
+    assert (RESULTS / "fig3" / "fig3.png").stat().st_size > 10_000
+    meta = json.loads((RESULTS / "sitl" / "data" / "2D_RPF" / "metadata.json").read_text())
+    gen = json.loads((RESULTS / "sitl" / "data" / "2D_RPF" / "generate.json").read_text())
+    assert meta["dt"] == pytest.approx(gen["dt"]) and meta["write_every"] == 10
+    assert gen["validation"]["profile_max_rel_error"] < 0.2
+    for m in ("gns", "sitl"):
+        assert json.loads((RESULTS / "sitl" / "ckp" / m / "train.json").read_text())["complete"]
+
+
+def test_interrupted_training_resumes_from_its_checkpoint():
+    side = RESULTS / "sitl" / "ckp" / "gns" / "train.json"
+    if not side.exists():
+        pytest.fail("run test_table1_and_fig3_smoke first (it trains the smoke GNS)", pytrace=False)
+    record = json.loads(side.read_text())
+    record["complete"] = False            # as if the run had been killed after its last checkpoint
+    side.write_text(json.dumps(record))
+    cmd = [str(ROOT / ".venv-lb" / "bin" / "python"), "sitl/train.py", "--profile", "smoke", "--results",
+           str(RESULTS), "--model", "gns"]
+    proc = subprocess.run(cmd, cwd=ROOT, env=dict(_env(), PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "resuming at step 20" in proc.stdout, proc.stdout[-2000:]
+    again = subprocess.run(cmd, cwd=ROOT, env=dict(_env(), PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                           timeout=900)
+    assert again.returncode == 0 and "up to date" in again.stdout
+
+
+# -- issue 23, class 3: damaged SitL files are named, set aside and made again by the next make -----
+# On the smoke results made above. Other test files only copy the dataset from there into their own
+# results folders, and their make checks the copy against the digests generate.json recorded, so a
+# copy taken while a file here is damaged is regenerated there, never trusted.
+@pytest.fixture(scope="module")
+def made():
+    if not (RESULTS / "sitl" / "ckp" / "gns" / "train.json").exists():
+        pytest.fail("run test_table1_and_fig3_smoke first (it trains the smoke models)", pytrace=False)
+    return RESULTS
+
+
+def _make_table1(results):
+    """`make table1 PROFILE=smoke` as the test above ran it (the default results folder: the same
+    commands, so the deliverables' records match and only what is damaged is made again)."""
+    assert results == RESULTS
+    proc = subprocess.run(["make", "table1", "PROFILE=smoke"], cwd=ROOT, env=_env(),
+                          capture_output=True, text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc.stdout
+
+
+def _truncate(p: Path) -> bytes:
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    return data
+
+
+def test_truncated_checkpoint_is_set_aside_and_trained_again(made):
+    ckp = made / "sitl" / "ckp" / "gns"
+    damaged = ckp / "best" / "params_tree.pkl"
+    cut = len(_truncate(damaged)) // 2
+    out = _make_table1(made)
+    assert f"{damaged.relative_to(ROOT)} is damaged" in out and "training gns again" in out, out[-3000:]
+    assert "train gns: from scratch" in out
+    aside = max(ckp.parent.glob("gns.stale-*"), key=lambda p: p.stat().st_mtime)
+    assert (aside / "best" / "params_tree.pkl").stat().st_size == cut  # kept as it was
+    assert (aside / "train.json").exists()
+    assert json.loads((ckp / "train.json").read_text())["complete"]
+    with (made / "table1" / "table1.csv").open() as f:
+        assert math.isfinite(float({r["metric"]: r for r in csv.DictReader(f)}["MSE_20"]["gns_ours"]))
+    assert "is damaged" not in _make_table1(made)            # repaired: the next make trusts it
+
+
+def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(made):
+    """One make repairs all three (the split's regeneration re-evaluates every model anyway)."""
+    data = made / "sitl" / "data" / "2D_RPF"
+    original = _truncate(data / "test.h5")
+    metrics = made / "sitl" / "metrics" / "solver.json"
+    good = json.loads(metrics.read_text())
+    metrics.write_text('{"mse5": 1.0, ')                      # cut mid-write
+    table = made / "table1" / "table1.md"
+    table.write_text(table.read_text()[:100])
+    out = _make_table1(made)
+    assert f"{(data / 'test.h5').relative_to(ROOT)}: damaged" in out and "generating the dataset again" in out, out[-3000:]
+    aside = max(data.glob("test.h5.stale-*"), key=lambda p: p.stat().st_mtime)
+    assert len(aside.read_bytes()) == len(original) // 2      # the damaged file is kept as it was
+    assert (data / "test.h5").read_bytes() == original        # regenerated: the same data (deterministic)
+    with h5py.File(data / "test.h5", "r") as f:
+        assert f["00000/position"].shape[0] == 44
+    assert "train gns: up to date" in out and "evaluate gns: up to date" in out  # same data: kept
+    assert f"{metrics.relative_to(ROOT)}: damaged (not readable as JSON" in out and "evaluating solver again" in out
+    assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
+    assert "Solver only (paper)" in table.read_text()
