@@ -4,6 +4,9 @@ PROFILE ?= paper
 PY      := .venv/bin/python
 VENV    := .venv/.stamp
 RESULTS := results/$(PROFILE)
+ifneq ($(words $(RESULTS)),1)
+$(error RESULTS='$(RESULTS)' holds a space: give a results folder without spaces)
+endif
 # Run steps always call their run script (FORCE): the script's own cache (lab.runs) decides what
 # re-runs, from fingerprints of the config and of exactly the code that can change the numbers, and
 # notices damaged or incomplete outputs. A run step touches its stamp only when something changed,
@@ -19,7 +22,7 @@ FORCE:
 DELIVER = $(PY) -m lab.deliver $(OUTS) --from $(filter-out FORCE,$^) --
 
 
-.PHONY: FORCE setup setup-lb test bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean help
+.PHONY: FORCE setup setup-lb test tests bench accuracy fig1 fig2 fig4 fig5 fig6 fig7 fig8 fig9 fig10 stability clean clean-expensive help
 .PHONY: all all-targets all-sitl report snapshot restore readme-tables
 .DEFAULT_GOAL := help
 
@@ -49,6 +52,8 @@ help:
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"
 	@echo "make test                       test suite"
+	@echo "make clean [PROFILE=smoke] [FORCE=1]  list results/<profile> with sizes; delete it only with FORCE=1"
+	@echo "make clean-expensive PROFILE=paper FORCE=1  the same for the paper / cpu profiles (hours of runs, trained models)"
 	@echo "make setup / setup-lb           core environment / LagrangeBench environment"
 
 setup: $(VENV)
@@ -138,5 +143,17 @@ $(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf &: $(RESUL
 endef
 $(foreach d,$(PROTOCOL_DIRS),$(eval $(call protocol_rules,$(d))))
 
+# clean: results/<profile> only, listed with sizes, deleted only with FORCE=1; without PROFILE= on the
+# command line the smoke profile; the paper and cpu profiles (hours of runs, trained models) only through
+# clean-expensive (scripts/clean.py)
+CLEAN_PROFILE := $(if $(filter command line environment,$(origin PROFILE)),$(PROFILE),smoke)
 clean:
-	rm -rf results
+	@python3 scripts/clean.py $(CLEAN_PROFILE) $(if $(FORCE),--force)
+clean-expensive:
+	@python3 scripts/clean.py $(PROFILE) --expensive $(if $(FORCE),--force)
+
+# a target make has no rule for is an error, not "Nothing to be done" (make tests: a folder of that name)
+tests:
+	@echo "make: no target 'tests': did you mean 'make test'? (make help lists the targets)" >&2; exit 2
+.DEFAULT:
+	@echo "make: no rule to make '$@' (make help lists the targets)" >&2; exit 2

@@ -161,12 +161,29 @@ def from_mapping(cls, data, where: str = ""):
         raise
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader that refuses a key written twice in one mapping (plain YAML keeps the last
+    value silently), naming the key and both lines."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise ConfigError(f"{self.name}:{line}: key {key!r} is written twice in one mapping (lines {seen[key]} "
+                                  f"and {line}); YAML would keep only the last: delete one", file=str(self.name))
+            seen[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+
 def load_yaml(path) -> dict:
-    """Read a YAML mapping; an empty file is an empty mapping."""
+    """Read a YAML mapping; an empty file is an empty mapping; a key written twice in one mapping is
+    refused, naming both lines."""
     path = Path(path)
     try:
         with path.open() as f:
-            data = yaml.safe_load(f)
+            data = yaml.load(f, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as e:
         raise yaml_error(path, e) from None
     except (OSError, UnicodeDecodeError) as e:

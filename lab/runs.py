@@ -257,6 +257,17 @@ def _open_checkpoint(spec: RunSpec, solver):
         return None
 
 
+def require_current(spec: RunSpec, remedy: str) -> None:
+    """Refuse (io.MissingOutput, one line naming the run, its state and `remedy`) to derive anything
+    from a run that is not the current config's: a metrics row cached under the config's key but
+    computed from a trajectory of other inputs would outlive every later make."""
+    state = stored_state(spec)
+    if state != "current":
+        what = {"absent": "has not been run", "stale": "was made from other inputs (the config or code changed)",
+                "partial": "stopped part-way", "damaged": "is damaged or incomplete"}[state]
+        raise io.MissingOutput(f"{spec.traj}: run {spec.label} {what}; {remedy}")
+
+
 def cached_row(folder, key: str, compute: Callable) -> dict:
     """A run's metrics row, recomputed by `compute()` only when `key` (a digest of the trajectory's
     fingerprint, the analysis settings and code) differs from the one stored in metrics_row.json."""

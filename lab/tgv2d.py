@@ -41,6 +41,7 @@ class Experiment:
         for i, dx in enumerate(self.dx):
             require(dx > 0 and abs(1.0 / dx - round(1.0 / dx)) < 1e-6, f"dx[{i}]",
                     f"must divide the unit square into whole cells (1/dx integer), got {dx}")
+            require(self.dx.index(dx) == i, f"dx[{i}]", f"{dx} appears twice (each run would be listed twice)")
         require(self.t_end > 0, "t_end", f"must be positive, got {self.t_end}")
         require(self.material.eta > 0, "material.eta",
                 "must be positive: the Taylor-Green reference decay exp(-8 pi^2 t / Re) and Re = rho_ref u_ref / eta "

@@ -4,6 +4,9 @@
 own image), a walled box too small to hold walls and fluid, walls thinner than the support.
 `check_memory`: a run whose particles and neighbour slots cannot fit in the available memory.
 `warn_fixed_dt`: a fixed `numerics.dt` above one of the stability limits (`UnstableTimeStep`).
+`check_start` (in `init_fn`, on the start's neighbour list): coincident particles, fluid without
+neighbours, positions made for another dx, and the physical invariants of the start (summation
+density = partition of unity, gradient consistency) within stated tolerances.
 """
 import math
 import warnings
@@ -12,6 +15,9 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from .pairs import sum_j
+from .pvec import dot
 
 from .config import Numerics
 from .errors import ConfigError
@@ -78,16 +84,27 @@ def _round_down(x: float, digits: int = 4) -> str:
     return f"{math.floor(x * scale) / scale:g}"
 
 
-def _coarsest_walled_dx(side: float, fluid_d, dx: float, cutoff: float) -> str:
+def _coarsest_walled_dx(side: float, fluid, d: int, walled, dx: float, cutoff: float) -> str:
     """The largest dx whose walled box holds two supports of walls and one of fluid, for a box that
     is built as L + 2 layers dx (the wall layers shrink with dx): L + 2 l dx >= 3 s dx, with the
-    support s = cutoff / dx, the layers l and the fluid span L read off this scene."""
-    layers = max(int(round((float(np.min(fluid_d)) - 0.5 * dx) / dx)), 0)
+    support s = cutoff / dx, the layers l and the fluid span L read off this scene; suggested as the
+    largest L / n below that bound that also divides the fluid's extent in every walled dimension
+    into whole spacings (a scene built from whole spacings can be built at it)."""
+    layers = max(int(round((float(np.min(fluid[:, d])) - 0.5 * dx) / dx)), 0)
     span = side - 2 * layers * dx
     s = cutoff / dx
     if 3 * s - 2 * layers <= 0 or span <= 0:
         return "use more wall layers or a finer dx"
-    return f"use dx <= {_round_down(span / (3 * s - 2 * layers))} (with {layers} wall layers around a span of {span:g})"
+    bound = span / (3 * s - 2 * layers)
+    # the fluid's extent per walled dimension (a lattice of whole spacings: ptp + dx); one within a
+    # spacing of the span fills the box (a cavity built at a dx that does not divide it)
+    extents = [e if abs(e - span) >= dx else span for e in (float(np.ptp(fluid[:, k])) + dx for k in walled)]
+    for n in range(math.ceil(span / bound - 1e-9), math.ceil(span / bound - 1e-9) + 200):
+        cand = span / n
+        if all(abs(e / cand - round(e / cand)) < 1e-6 for e in extents):
+            return (f"use dx = {cand:.10g} or finer (the coarsest whole division of the span {span:g} and of the "
+                    f"fluid with {layers} wall layers)")
+    return f"use dx <= {_round_down(bound)} (with {layers} wall layers around a span of {span:g})"
 
 
 def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numerics) -> None:
@@ -112,8 +129,9 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
         if per and side < 2 * cutoff * (1 - 1e-9):
             raise ConfigError(
                 f"{where}: dx = {dx:g} is too coarse: the periodic side {d} of length {side:g} is shorter than twice "
-                f"{support}, so a particle would interact with its own periodic image; use dx <= "
-                f"{_round_down(side / (2 * cutoff / dx))} (at least {math.ceil(2 * cutoff / dx)} particles across)")
+                f"{support}, so a particle would interact with its own periodic image; use dx = "
+                f"{side / math.ceil(2 * cutoff / dx - 1e-9):.10g} or finer (at least {math.ceil(2 * cutoff / dx - 1e-9)} "
+                f"particles across)")
     fluid = scene.r[scene.fluid_mask]
     if scene.effects.walls is not None:
         for d in range(scene.dim):
@@ -123,7 +141,8 @@ def check_resolution(scene: Scene, cutoff: float, skin: float, numerics: Numeric
                 raise ConfigError(
                     f"{where}: dx = {dx:g} is too coarse: the walled box is {box[d]:g} wide in dimension {d}, less "
                     f"than two wall layers of {support} plus one support of fluid between them ({3 * cutoff:g}); "
-                    f"the fluid cannot be resolved: {_coarsest_walled_dx(box[d], fluid[:, d], dx, cutoff)}")
+                    f"the fluid cannot be resolved: "
+                    f"{_coarsest_walled_dx(box[d], fluid, d, [k for k in range(scene.dim) if not scene.domain.periodic[k]], dx, cutoff)}")
             gap = np.minimum(fluid[:, d], box[d] - fluid[:, d])
             i = int(np.argmin(gap))
             if gap[i] < cutoff * (1 - 1e-6):
@@ -156,50 +175,116 @@ SPACING_RANGE = (0.5, 1.6)
 gives 1, a relaxed or jittered one 0.85-1; outside, the particles were made for another dx."""
 
 
+DENSITY_TOLERANCE = 0.10
+"""How far the median Shepard sum sum_j V_j W_ij (self term included, V = m / rho_ref) of the interior
+fluid particles may lie from 1 on the start. With V = m / rho_ref it is both the summation density
+over rho_ref and the kernel's partition of unity. A lattice gives 1.0001 (2D and 3D), a relaxed start
+1 +- 0.01, an unrelaxed 0.25 dx Gaussian jitter +0.05 ... +0.06; a spacing 5 % off dx gives 0.10 (2D),
+0.16 (3D), positions of spacing 0.04 at dx 0.05 1.56, h_factor 0.5 1.31."""
+GRADIENT_TOLERANCE = 0.25
+"""How far the median over the interior fluid of max_ab |M_ab / S - delta_ab| may be from 0, with
+M = sum_j V_j (r_j - r_i) (x) grad_i W_ij (= I for an exact gradient) and S the Shepard sum: the
+kernel's gradient consistency. Lattice: 0.0008 at h = dx, 0.012 at 0.8 dx, 0.08 at 0.7 dx, 0.28 at
+0.6 dx, 0.63 at 0.5 dx; an unrelaxed 0.25 dx jitter 0.16."""
+INTERIOR = 0.3
+"""A fluid particle counts as interior (its support full: no free surface near it) where
+|sum_j V_j grad_i W_ij| h < INTERIOR: 0 on a lattice, median 0.2 for a 0.25 dx jitter, about 0.5 on a
+free surface."""
+
+
 @dataclass(frozen=True)
-class Spacing:
-    """A pass term: per particle its nearest neighbour's distance and index, and the number of
-    neighbours within the kernel support `cutoff` (for `check_spacing`)."""
+class StartInvariants:
+    """A pass term over the start: per particle its nearest neighbour's distance and index, the number
+    of neighbours within the kernel support `cutoff`, the Shepard sum S = V_i W(0) + sum_j V_j W_ij,
+    |sum_j V_j grad_i W_ij| h (0 where the support is full) and the gradient-consistency matrix
+    M = sum_j V_j (r_j - r_i) (x) grad_i W_ij (row-major entries), with V = `vol` (m / rho_ref)."""
 
     cutoff: float
+    w0: float
+    h: float
+    reads = ("r", "vol")
 
     def __call__(self, pp, i, j):
         d = jnp.where(pp.mask, pp.d, jnp.inf)
         k = jnp.argmin(d, axis=-1, keepdims=True)
         count = jnp.sum(pp.mask & (pp.d < self.cutoff), axis=-1, keepdims=True)
-        return jnp.take_along_axis(d, k, -1), jnp.take_along_axis(pp.j, k, -1), count
+        shepard = i.vol * self.w0 + sum_j(j.vol * pp.w)
+        g = sum_j(j.vol * pp.grad_w)
+        m = tuple(sum_j(j.vol * (-a) * b) for a in pp.dr.c for b in pp.grad_w.c)
+        return (jnp.take_along_axis(d, k, -1), jnp.take_along_axis(pp.j, k, -1), count, shepard,
+                jnp.sqrt(dot(g, g)) * self.h) + m
 
 
-def check_spacing(scene: Scene, nearest, nearest_j, count, cutoff: float, numerics: Numerics) -> None:
-    """Named ConfigErrors, before a step is taken, for particles the step cannot treat:
-    coincident particles (a pair closer than 1e-3 dx: r_ij = 0 makes every pair term singular), a
-    spacing that disagrees with scene.dx (masses m = rho_ref dx^dim would give a density off by
-    (spacing / dx)^dim: initial positions made for another resolution), and a kernel support that
-    holds fewer than MIN_NEIGHBOURS neighbours of a typical fluid particle (h_factor too small).
-    Typical = the median over the fluid particles that have a neighbour in the list; a scene with
-    fewer such particles than 4 MIN_NEIGHBOURS (a single particle thrown at a wall) is legitimate
-    physics, resolved or not, and only checked for coincident particles."""
-    dx, where = scene.dx, f"scene {scene.name}"
-    nearest, nearest_j, count = (np.asarray(x) for x in (nearest, nearest_j, count))
+def check_start(scene: Scene, invariants, cutoff: float, numerics: Numerics) -> None:
+    """Named ConfigErrors, before a step is taken, for a start the physics cannot treat (checked in
+    this order, each a one-line message naming the key to change):
+
+    - coincident particles (a pair closer than 1e-3 dx: r_ij = 0 makes every pair term singular);
+    - fluid particles without a neighbour in the kernel support (positions far sparser than dx);
+    - a median spacing outside SPACING_RANGE dx (positions made for another resolution);
+    - fewer than MIN_NEIGHBOURS neighbours of a typical fluid particle (h_factor too small);
+    - the physical invariants of the interior fluid (INTERIOR): the Shepard sum, which is the
+      summation density over rho_ref and the partition of unity, within DENSITY_TOLERANCE of 1, and
+      the kernel's gradient consistency within GRADIENT_TOLERANCE. These catch any mismatch of
+      lattice and dx (in any dimension) and a kernel too small to resolve the sums, however many
+      neighbours it reaches.
+
+    A scene with fewer fluid particles than 4 MIN_NEIGHBOURS (a single particle thrown at a wall) is
+    legitimate physics, resolved or not, and only checked for coincident particles; the invariants
+    are checked where at least that many fluid particles are interior."""
+    dx, dim, where = scene.dx, scene.dim, f"scene {scene.name}"
+    nearest, nearest_j, count, shepard, g_h, *m = (np.asarray(x) for x in invariants)
     i = int(np.argmin(nearest))
     if nearest[i] < 1e-3 * dx:
         raise ConfigError(
             f"{where}: particles {i} and {int(nearest_j[i])} coincide (distance {nearest[i]:.3g} < 1e-3 dx, at "
             f"{np.round(scene.r[i], 6).tolist()}): every pair term is singular there; remove the duplicate")
-    fluid = scene.fluid_mask & np.isfinite(nearest)   # particles alone in their list (a jet, a drop) aside
-    if fluid.sum() < 4 * MIN_NEIGHBOURS[scene.dim]:
+    fluid, need = scene.fluid_mask, MIN_NEIGHBOURS[dim]
+    if fluid.sum() < 4 * need:
         return                                        # too few to have an interior: nothing typical to check
-    spacing = float(np.median(nearest[fluid]))
+    alone = fluid & (count == 0)
+    if alone.sum() > fluid.sum() // 2:
+        seen = nearest[fluid & np.isfinite(nearest)]
+        apart = f"{float(np.median(seen)):.4g}" if seen.size else f"more than {cutoff + numerics.skin_factor * dx:.4g}"
+        raise ConfigError(
+            f"{where}: {int(alone.sum())} of {int(fluid.sum())} fluid particles have no neighbour within the kernel "
+            f"support {cutoff:.4g} ({cutoff / dx:.3g} dx): the particles are {apart} apart, far more than scene.dx = "
+            f"{dx:g}; set dx to their spacing or rebuild the positions for dx = {dx:g}")
+    has = fluid & np.isfinite(nearest)
+    spacing = float(np.median(nearest[has]))
     lo, hi = SPACING_RANGE
     if not lo * dx <= spacing <= hi * dx:
         raise ConfigError(
             f"{where}: the fluid particles' spacing (median nearest-neighbour distance {spacing:.4g}) is "
             f"{spacing / dx:.3g} dx for scene.dx = {dx:g}: the particles were made for another resolution "
-            f"(masses rho_ref dx^dim would put the density near {(dx / spacing) ** scene.dim:.3g} rho_ref); "
+            f"(masses rho_ref dx^dim would put the density near {(dx / spacing) ** dim:.3g} rho_ref); "
             f"set dx = {spacing:.4g} or rebuild the positions for dx = {dx:g}")
-    typical, need = float(np.median(count[fluid])), MIN_NEIGHBOURS[scene.dim]
+    typical = float(np.median(count[has]))
     if typical < need:
         raise ConfigError(
             f"numerics.h_factor: {numerics.h_factor:g} gives a kernel support of {cutoff / dx:.3g} dx with "
             f"{typical:.0f} neighbours per fluid particle (median), fewer than {need} (the first lattice shell): "
             f"the SPH sums are not resolved; raise numerics.h_factor")
+    interior = has & (count >= need) & (g_h < INTERIOR)
+    if interior.sum() < 4 * need:
+        return
+    s = float(np.median(shepard[interior]))
+    if abs(s - 1.0) > DENSITY_TOLERANCE:
+        if abs(spacing / dx - 1.0) > 0.02:
+            raise ConfigError(
+                f"{where}: the interior fluid's summation density is {s:.3g} rho_ref on the start (allowed 1 +- "
+                f"{DENSITY_TOLERANCE:g}): its particles are {spacing:.4g} apart (median), {spacing / dx:.3g} dx for "
+                f"scene.dx = {dx:g}, so masses rho_ref dx^dim are wrong for them; set dx = {spacing:.4g} or rebuild "
+                f"the positions for dx = {dx:g}")
+        raise ConfigError(
+            f"numerics.h_factor: {numerics.h_factor:g} (kernel support {cutoff / dx:.3g} dx) gives a partition of "
+            f"unity sum V W = {s:.3g} on the interior of the start (allowed 1 +- {DENSITY_TOLERANCE:g}): the kernel "
+            f"does not resolve the SPH sums; raise numerics.h_factor (1.0 gives 1.0001)")
+    eye = np.eye(dim).reshape(-1)
+    dev = np.abs(np.stack(m, -1)[interior] / shepard[interior][:, None] - eye).max(-1)
+    e = float(np.median(dev))
+    if e > GRADIENT_TOLERANCE:
+        raise ConfigError(
+            f"numerics.h_factor: {numerics.h_factor:g} (kernel support {cutoff / dx:.3g} dx) gives a kernel gradient "
+            f"off by {e:.2g} on the interior of the start (sum V (r_j - r_i) grad W = I within {GRADIENT_TOLERANCE:g}): "
+            f"the kernel does not resolve the SPH gradients; raise numerics.h_factor (1.0 gives 0.001)")

@@ -18,8 +18,8 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from .checks import (InsufficientMemory, Spacing, UnstableTimeStep, check_memory, check_resolution,  # noqa: F401
-                     check_spacing, neighbour_slots, warn_fixed_dt)
+from .checks import (InsufficientMemory, StartInvariants, UnstableTimeStep, check_memory,  # noqa: F401
+                     check_resolution, check_start, neighbour_slots, warn_fixed_dt)
 from .blocks import evaluate
 from .config import Numerics
 from .constants import derive
@@ -97,7 +97,9 @@ def build_solver(scene: Scene, numerics: Numerics = Numerics(), extra_terms=()) 
     def init_fn():
         r = jnp.asarray(scene.r, c.dtype)
         nbrs = nsearch.allocate(r)
-        check_spacing(scene, *jax.jit(partial(sweep_fn, Spacing(c.kernel.cutoff)))(nbrs, r=r), c.kernel.cutoff, numerics)
+        vol = jnp.asarray(scene.particle_mass / scene.material.rho_ref, c.dtype)
+        invariants = jax.jit(partial(sweep_fn, StartInvariants(c.kernel.cutoff, c.w0, c.h)))(nbrs, r=r, vol=vol)
+        check_start(scene, invariants, c.kernel.cutoff, numerics)
         # jitted: op-by-op dispatch of the first state costs ~10x its compilation (29 s vs 3 s, ldc dx 0.02)
         return jax.jit(state_at)(r, jnp.asarray(scene.u, c.dtype), nbrs), nbrs
 

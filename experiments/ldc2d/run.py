@@ -93,6 +93,7 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     """The metrics row of a finished run (analysis.evaluate, cached beside the run on the trajectory's
     fingerprint and the analysis settings and code: analysis.py and sph.cases.ldc_reference)."""
     sp = spec(exp, exp.method(method), dx, results)
+    runs.require_current(sp, "make the figure (make fig6 / fig7, or experiments/ldc2d/run.py) to run it first")
     key = keys.digest({"run": sp.fingerprint, "analysis": to_mapping(exp.analysis), "ghia_re": exp.ghia_re,
                        "code": analysis.code_key()})
     return runs.cached_row(sp.folder, key, lambda: analysis.evaluate(exp, method, dx, results))

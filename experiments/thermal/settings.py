@@ -64,6 +64,7 @@ class Diffusion:
         for i, dx in enumerate(self.dx):
             require(_whole_cells(1.0, dx), f"diffusion.dx[{i}]",
                     f"must divide the unit square into whole cells (1/dx integer), got {dx}")
+            require(self.dx.index(dx) == i, f"diffusion.dx[{i}]", f"{dx} appears twice")
         require(any(abs(d - self.report_dx) < 1e-12 for d in self.dx), "diffusion.report_dx",
                 f"{self.report_dx} is not one of diffusion.dx {list(self.dx)}")
         require(self.t_end > 0, "diffusion.t_end", f"must be positive, got {self.t_end}")

@@ -67,15 +67,33 @@ def test_walled_box_suggestion_is_a_value_that_passes(dx):
     the cavity at the suggested dx succeeds (before, 0.78 was suggested, then 0.44, then 0.40...)."""
     with pytest.raises(sph.ConfigError) as err:
         sph.build_solver(ldc.scene(dx, MAT, sph.Effects(walls="no_slip")))
-    suggested = float(re.search(r"use dx <= ([0-9.e-]+)", str(err.value)).group(1))
-    assert suggested == pytest.approx(1 / 3, rel=1e-3)
+    suggested = float(re.search(r"use dx = ([0-9.e-]+) or finer", str(err.value)).group(1))
+    assert suggested == pytest.approx(1 / 3, rel=1e-9)
     state, _ = _start(ldc.scene(suggested, MAT, sph.Effects(walls="no_slip")))
+    assert state.n > 0
+    sph.build_solver(*ldc.setup(suggested, re=100)).init_fn()     # the validated recipe takes it too (1/dx whole)
+
+
+def test_dam_break_suggestion_keeps_the_columns_whole():
+    """The dam break at dx 1 used to suggest dx <= 0.6666, which the column of height 1 refuses (not
+    whole spacings); the suggestion is now the coarsest dx dividing the span and the fluid: 0.5."""
+    from sph.cases import tank
+
+    def scene(dx):
+        return tank.scene(dx, sph.Material(eta=1e-4, u_ref=1.4), tank.DAM_BREAK_EFFECTS, width=2.0, height=1.0,
+                          tank_length=5.366, tank_height=2.0)
+
+    with pytest.raises(sph.ConfigError) as err:
+        sph.build_solver(scene(1.0), tank.DAM_BREAK_NUMERICS)
+    suggested = float(re.search(r"use dx = ([0-9.e-]+) or finer", str(err.value)).group(1))
+    assert suggested == 0.5
+    state, _ = _start(scene(suggested), tank.DAM_BREAK_NUMERICS)
     assert state.n > 0
 
 
 def test_periodic_suggestion_is_a_value_that_passes():
     with pytest.raises(sph.ConfigError) as err:
         sph.build_solver(tgv.scene(0.25, MAT, sph.Effects()))
-    suggested = float(re.search(r"use dx <= ([0-9.e-]+)", str(err.value)).group(1))
-    assert suggested <= 1 / 6
-    sph.build_solver(tgv.scene(1 / round(1 / suggested + 0.5), MAT, sph.Effects()))
+    suggested = float(re.search(r"use dx = ([0-9.e-]+) or finer", str(err.value)).group(1))
+    assert suggested == pytest.approx(1 / 6, rel=1e-9)
+    _start(tgv.scene(suggested, MAT, sph.Effects()))

@@ -64,9 +64,11 @@ def test_every_run_is_made_and_tabled(study):
     assert (out / "study.png").stat().st_size > 10_000
     md = (out / "study.md").read_text()
     assert "Equal cost: GNS trained" in md and "paper's solver only" in md
-    for name, r in rows.items():
+    for name, r in rows.items():   # at smoke every run stays finite (the paper's coarse L = 1 runs diverge)
         assert int(r["n_windows"]) == 1, r
-        assert r["finite"] in ("True", "False") and (r["finite"] == "False" or float(r["mse20"]) > 0), r
+        assert r["finite"] == "True" and float(r["mse20"]) > 0, r
+    # a floor of sense: the solver beats particles that do not move (measured 2.9e-7 against 0.022)
+    assert float(rows["frozen"]["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])
     # nothing of the study went into Table 1's folders: smoke's study runs all differ from the profile
     assert not (S.out_dir(results) / "ckp").exists()
 
@@ -142,11 +144,10 @@ def test_authors_force(study):
 
 def test_second_call_repeats_nothing(study):
     results, _, _, _ = study
-    proc, wall = _make(results)
+    proc, _ = _make(results)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "from scratch" not in proc.stdout and "resuming" not in proc.stdout
     assert proc.stdout.count("up to date") >= 8, proc.stdout[-3000:]
-    assert math.isfinite(wall)
 
 
 def test_only_runs_a_subset_and_the_table_keeps_every_current_run(study):

@@ -103,5 +103,6 @@ def test_setup_round_trip(tmp_path):
 
 
 def test_make_test_never_builds_the_peer_env():
-    out = subprocess.run(["make", "-n", "-C", str(ROOT), "test"], capture_output=True, text=True).stdout
-    assert "setup_peer" not in out
+    proc = subprocess.run(["make", "-n", "-C", str(ROOT), "test"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "pytest" in proc.stdout and "setup_peer" not in proc.stdout
