@@ -22,6 +22,9 @@ from sph.state import FLUID
 
 UNIT_SQUARE = Domain(box=(1.0, 1.0), periodic=(True, True))
 ROOT = Path(__file__).resolve().parents[1]
+SHARED_SMOKE = ROOT / ".pytest_cache" / "shared-results" / "smoke"
+"""The SitL smoke results the tests make once and share (dataset, trained models): the tests' own
+folder, never the repository's results/smoke."""
 
 
 def lattice(dx, dim=2):

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..config import Effects, Material, Numerics
 from ..domain import Domain
+from ..errors import ConfigError
 from ..lattice import cartesian
 from ..scene import Scene
 from ..state import FLUID
@@ -39,8 +40,9 @@ def scene(dx: float, sigma: float, radius: float = 0.25, box: float = 1.0, eta: 
           rho_ref: float = 1.0, name: str = "droplet") -> Scene:
     """The droplet of radius `radius` at the centre of the periodic box [0, box]^2."""
     n = box / dx
-    if abs(n - round(n)) > 1e-9:
-        raise ValueError(f"droplet: box {box} must be a whole number of spacings dx = {dx}; try dx = {box / round(n):.6g}")
+    if abs(n - round(n)) > 1e-6:
+        raise ConfigError(f"dx: the droplet's box {box:g} is not a whole number of spacings dx = {dx:g}; use dx = "
+                          f"{box / round(n):.12g} ({round(n)} spacings)")
     r = cartesian([0.0, 0.0], [box, box], dx)
     inside = np.linalg.norm(r - 0.5 * box, axis=1) < radius
     mat = Material(rho_ref=rho_ref, eta=eta, u_ref=u_ref(sigma, radius, rho_ref))

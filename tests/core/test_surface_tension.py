@@ -87,3 +87,13 @@ def test_surface_tension_without_an_interface_is_refused_by_name():
         sph.Effects(surface_tension=-1.0)
     with pytest.raises(sph.ConfigError, match=r"phase must be \(900,\) integers"):
         dataclasses.replace(sc, phase=np.zeros(sc.n))
+
+
+def test_a_droplet_dx_that_does_not_divide_the_box_suggests_one_that_builds():
+    import re
+
+    with pytest.raises(sph.ConfigError, match=r"^dx: the droplet's box 1 is not a whole number") as e:
+        droplet.scene(0.03, SIGMA, R)
+    dx = float(re.search(r"use dx = ([0-9.]+)", str(e.value)).group(1))
+    assert dx == pytest.approx(1 / 33)
+    sph.build_solver(droplet.scene(dx, SIGMA, R), droplet.NUMERICS).init_fn()

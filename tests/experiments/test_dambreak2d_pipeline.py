@@ -119,7 +119,10 @@ def test_wall_pressure_is_causal_finite_and_positive(smoke):
     assert t_reach < row["p_arrival_t"] < c.t_end
     wet = t >= row["p_arrival_t"]
     assert p[wet].mean() > 0.1, "the impact should press on the wall"
-    assert 0.1 < row["p_peak"] < 5.0 and row["p_arrival_t"] <= row["p_peak_t"] <= row["p_arrival_t"] + exp.peak_window
+    # the impact peak against Buchner's (2002) measured 0.686 rho g H, an independent reference: -12 %
+    # measured at the smoke dx (2026-12-06); the bound is twice that
+    assert abs(row["p_peak"] / row["ref_p_peak"] - 1.0) < 0.25, (row["p_peak"], row["ref_p_peak"])
+    assert row["p_arrival_t"] <= row["p_peak_t"] <= row["p_arrival_t"] + exp.peak_window
 
 
 def test_rerun_skips_and_figures_are_written(smoke):

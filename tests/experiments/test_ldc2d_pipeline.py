@@ -54,8 +54,10 @@ def test_metrics_csv_has_one_physical_row_per_method(exp, finished):
                     "profile_change", "e_kin_change", "density_error_max"):
             assert np.isfinite(got[col]), col
         assert got["u_maxdev"] >= got["u_rms"] > 0 and got["v_maxdev"] >= got["v_rms"] > 0
-        # coarse and not yet steady, but already near Ghia's profiles
-        assert got["u_rms"] < 0.15 and got["v_rms"] < 0.08, got["method"]
+        # coarse and not yet steady, but already near Ghia's (1982) profiles, an independent reference:
+        # measured 2026-12-06 u_rms 0.031-0.040, v_rms 0.034-0.036 over the three methods (a fluid at
+        # rest: 0.35 / 0.24); the bounds are twice the worst method's
+        assert got["u_rms"] < 0.08 and got["v_rms"] < 0.075, got["method"]
         assert got["density_error_max"] < 0.05  # weakly compressible, Ma = 0.1
         assert got["fluid_outside"] == 0  # no fluid particle has entered a wall
         assert got["avg_t_to"] == pytest.approx(exp.t_end) and got["avg_t_from"] < got["avg_t_to"]

@@ -13,7 +13,7 @@ its dt, started with the consistent velocity) is the floor, far below the same i
 with the lagging one (M = 1). Coarsening itself costs no accuracy here: the smoke flow is near
 steady and c Delta t / h = 2 is still stable over 20 frames. The cost falls with M (fewer substeps).
 
-Shares the smoke dataset of results/smoke when there is one (copied with its times, so make
+Shares the smoke dataset of the tests' shared folder (SHARED_SMOKE) when there is one (copied with its times, so make
 regenerates it here if it is stale); never trains, so GNS / SitL are left out. FAILS, not skips,
 when .venv-lb is missing."""
 import csv
@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from sph_test_helpers import SHARED_SMOKE
 
 from experiments.accuracy import atlas as A
 from experiments.accuracy import settings as AS
@@ -53,7 +55,7 @@ def cost(tmp_path_factory):
     if not (ROOT / ".venv-lb" / ".stamp").exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
     results = tmp_path_factory.mktemp("results")
-    shared = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
     if (shared / "generate.json").exists():
         shutil.copytree(shared, S.data_dir(results))
     proc = _make(results)

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from sph_test_helpers import SHARED_SMOKE
+
 ROOT = Path(__file__).resolve().parents[2]
 LB_PYTHON = ROOT / ".venv-lb" / "bin" / "python"
 
@@ -287,11 +289,11 @@ def test_untrained_sitl_equals_solver_only_on_a_batch():
 
 
 def _smoke_dataset(tmp_path) -> Path:
-    """The smoke dataset in a private folder: results/smoke's copied when there is one (another test
+    """The smoke dataset in a private folder: the tests' shared smoke folder's copied when there is one (another test
     file may be writing it: make checks the copy against its recorded digests and regenerates a
     damaged one), else generated (make sitl-data PROFILE=smoke, ~30 s)."""
     results = tmp_path / "smoke"
-    shared = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
     if (shared / "generate.json").exists():
         shutil.copytree(shared, results / "sitl" / "data" / "2D_RPF")
     env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")

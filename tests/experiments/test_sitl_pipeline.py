@@ -16,8 +16,10 @@ import h5py
 import numpy as np
 import pytest
 
+from sph_test_helpers import SHARED_SMOKE
+
 ROOT = Path(__file__).resolve().parents[2]
-RESULTS = ROOT / "results" / "smoke"
+RESULTS = SHARED_SMOKE
 
 
 def _env():
@@ -43,12 +45,19 @@ def _frozen_mse5(path: Path, n_windows: int) -> float:
     return float(np.mean(out))
 
 
-def test_table1_and_fig3_smoke():
+@pytest.fixture(scope="module")
+def smoke_made():
+    """`make table1 fig3 PROFILE=smoke` into the tests' shared folder, once per module (the models are
+    trained once; the other SitL test files copy the dataset from there)."""
     if not (ROOT / ".venv-lb" / ".stamp").exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
-    proc = subprocess.run(["make", "table1", "fig3", "PROFILE=smoke"], cwd=ROOT, env=_env(), capture_output=True,
-                          text=True, timeout=1800)
+    proc = subprocess.run(["make", "table1", "fig3", "PROFILE=smoke", f"RESULTS={RESULTS}"], cwd=ROOT, env=_env(),
+                          capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc
+
+
+def test_table1_and_fig3_smoke(smoke_made):
     with (RESULTS / "table1" / "table1.csv").open() as f:
         rows = {r["metric"]: r for r in csv.DictReader(f)}
     for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
@@ -109,17 +118,15 @@ def test_interrupted_training_resumes_from_its_checkpoint():
 # results folders, and their make checks the copy against the digests generate.json recorded, so a
 # copy taken while a file here is damaged is regenerated there, never trusted.
 @pytest.fixture(scope="module")
-def made():
-    if not (RESULTS / "sitl" / "ckp" / "gns" / "train.json").exists():
-        pytest.fail("run test_table1_and_fig3_smoke first (it trains the smoke models)", pytrace=False)
+def made(smoke_made):
     return RESULTS
 
 
 def _make_table1(results):
-    """`make table1 PROFILE=smoke` as the test above ran it (the default results folder: the same
+    """`make table1 PROFILE=smoke` as the fixture ran it (the same results folder: the same
     commands, so the deliverables' records match and only what is damaged is made again)."""
     assert results == RESULTS
-    proc = subprocess.run(["make", "table1", "PROFILE=smoke"], cwd=ROOT, env=_env(),
+    proc = subprocess.run(["make", "table1", "PROFILE=smoke", f"RESULTS={RESULTS}"], cwd=ROOT, env=_env(),
                           capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc.stdout

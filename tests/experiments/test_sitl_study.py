@@ -1,7 +1,7 @@
 """`make sitl-study PROFILE=smoke` (sitl/study.py, in .venv-lb through make) into a private results
 folder: every kind of run of the study once, tiny (study.overrides of the smoke profile: 2 training
 steps, a 4-wide network, one test window), its table and figure, and a second call that repeats
-nothing. Shares the smoke dataset of results/smoke when there is one (copied, as test_sitl_cost).
+nothing. Shares the smoke dataset of the tests' shared folder (SHARED_SMOKE) when there is one (copied, as test_sitl_cost).
 
 Checked beyond "it ran": the equal-cost GNS's step budget recomputed from both models' timed
 seconds per step and per validation window; each run trained with its own settings (noise, substeps); SitL compared with the
@@ -20,6 +20,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from sph_test_helpers import SHARED_SMOKE
 
 from sitl import settings as S
 
@@ -44,7 +46,7 @@ def study(tmp_path_factory):
     if not (ROOT / ".venv-lb" / ".stamp").exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
     results = tmp_path_factory.mktemp("results")
-    shared = ROOT / "results" / "smoke" / "sitl" / "data" / "2D_RPF"
+    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
     if (shared / "generate.json").exists():
         shutil.copytree(shared, S.data_dir(results))
     proc, wall = _make(results)

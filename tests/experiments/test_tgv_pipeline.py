@@ -50,10 +50,13 @@ def test_metrics_row_is_physical(exp, finished):
     assert got["wall_s"] > 0 and got["compile_s"] > 0 and np.isfinite(got["ms_per_step"])
     for col in ("u_max_relerr_t0.25", "e_kin_relerr_t0.25", "u_max_relerr_mean", "e_kin_relerr_mean"):
         assert np.isfinite(got[col]), col
-    # loose physical bounds: the decay of TGV is captured at this coarse resolution
-    assert got["e_kin_relerr_t0.25"] < 0.2
-    assert got["u_max_relerr_t0.25"] < 0.3
-    assert got["density_error_max"] < 0.1  # weakly compressible, Ma = 0.1
+    # bounds derived from the measurement (2026-12-06, TVF, dx 0.05, relaxed 100 steps): E_kin 0.031,
+    # u_max 0.119 from the analytical decay at t = 0.25. A viscous term 40 % too weak (patched into the
+    # solver) gives 0.135 and 0.192: E_kin's bound (2x measured) catches it, u_max's (1.5x measured; the
+    # maximum over 400 particles is dominated by the discretization at this dx) as well
+    assert got["e_kin_relerr_t0.25"] < 0.063
+    assert got["u_max_relerr_t0.25"] < 0.18
+    assert got["density_error_max"] < 0.1  # weakly compressible, Ma = 0.1 (measured 0.063)
     assert np.isnan(got["u_max_relerr_t1"]) and np.isnan(got["e_kin_relerr_t1"])  # t > t_end
 
 
@@ -146,8 +149,9 @@ def test_interrupted_run_resumes_from_checkpoint(exp, finished, tmp_path):
     a = io.read_trajectory(traj)
     b = io.read_trajectory(S.run_dir(results_full, "tvf", DX) / "traj.h5")
     np.testing.assert_array_equal(a["step"], b["step"])
-    np.testing.assert_allclose(a["e_kin"], b["e_kin"], rtol=1e-6)
-    np.testing.assert_allclose(a["position"][-1], b["position"][-1], atol=1e-6)
+    # float64 and the same program: resumed equals uninterrupted to round-off (1e-12, as every resume check)
+    np.testing.assert_allclose(a["e_kin"], b["e_kin"], rtol=1e-12)
+    np.testing.assert_allclose(a["position"][-1], b["position"][-1], rtol=0, atol=1e-12)
 
 
 def test_nonfinite_state_stops_with_particle_and_step():

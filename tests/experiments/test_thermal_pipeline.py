@@ -62,10 +62,13 @@ def test_channel_row_is_physical(exp, finished):
     assert bool(row["max_principle_ok"]) and row["max_principle_violation"] == 0.0
     assert row["T_all_min"] == c.T_ref and row["T_all_max"] == c.T_hot
     assert c.T_ref <= row["T_fluid_min"] and row["T_fluid_max"] < c.T_hot
-    assert 0.5 < row["theta_fluid_max"] < 1.0          # the fluid over the heated segment warms up
     assert row["Q_hot_end"] > 0 > row["Q_cold_end"]   # heat flows in at the hot wall, out at the cold ones
-    assert 1.0 < row["Nu_hot_end"] < 3.0
-    assert 1.0 <= row["T_outlet_mean_end"] < 1.05
+    # a regression band, not a physics bound: measured 2026-12-06 at this dx, +-25 % (the outlet rise
+    # within 2.5x); the heat operator itself is checked against the exact decay of a sine
+    # (tests/core/test_heat.py and the heat validation above), which a wrong coefficient fails
+    assert 0.54 < row["theta_fluid_max"] < 0.91         # measured 0.724: the fluid over the heated segment warms
+    assert 1.28 < row["Nu_hot_end"] < 2.13              # measured 1.70
+    assert 1.0 <= row["T_outlet_mean_end"] < 1.0053     # measured 1.0021
     # the flow: start-up Poiseuille, bulk velocity within 15 % at this coarse dx (8.4 % measured)
     assert abs(row["u_bulk_relerr_end"]) < 0.15
     assert row["density_error_max"] < 0.1   # at t = 0, from the 0.05 dx position noise (quintic, h = dx)
