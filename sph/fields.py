@@ -10,7 +10,7 @@ transients live only within a step:
 
 Without walls no pass writes u_visc and v_stress; a pass that reads them gets u and v (`value`).
 """
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from typing import Optional
 
 import jax
@@ -23,19 +23,9 @@ FALLBACK = {"u_visc": "u", "v_stress": "v"}
 
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
-class Fields:
+class Fields(ParticleState):
     """ParticleState's fields (see there) and the transients of the module docstring."""
 
-    r: jax.Array
-    u: jax.Array
-    v: jax.Array
-    rho: jax.Array
-    p: jax.Array
-    mass: jax.Array
-    tag: jax.Array
-    dudt: jax.Array
-    dvdt: jax.Array
-    T: Optional[jax.Array] = None
     u_visc: Optional[jax.Array] = None
     v_stress: Optional[jax.Array] = None
     dTdt: Optional[jax.Array] = None
@@ -46,9 +36,6 @@ class Fields:
 
     def state(self) -> ParticleState:
         return ParticleState(**{f.name: getattr(self, f.name) for f in fields(ParticleState)})
-
-    def replace(self, **kw) -> "Fields":
-        return replace(self, **kw)
 
     def value(self, name: str):
         """The field `name`, or the field it falls back to (FALLBACK) while no pass has written it."""
