@@ -74,6 +74,10 @@ def _n_leaves(tree) -> int:
 
 
 def set_aside_damaged(path: Path, why: str, then: str, whole: Optional[Path] = None) -> None:
-    """One line naming the damaged file; `whole` (default: the file) is set aside."""
+    """One line naming the damaged file; `whole` (default: the file) is set aside. A file that is not
+    there at all (deleted by hand) has nothing to set aside: one line says so."""
     target = Path(whole) if whole is not None else Path(path)
+    if not target.exists():
+        print(f"{path}: missing; {then}", flush=True)
+        return
     set_aside(target, f"{path} is damaged ({why})" if whole is not None else f"damaged ({why})", then=then)

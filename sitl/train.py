@@ -26,6 +26,7 @@ from sitl import settings as S
 from lab import runs
 from lab.cli import profile_main
 from lab.deliver import note_input
+from lab.lock import folder_lock
 
 
 def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
@@ -50,8 +51,17 @@ def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
 
 
 def train(exp: S.Experiment, results, kind: str) -> dict:
+    """Train (or resume, or skip) model `kind`; one training of a model at a time: a second process
+    asking for it waits for the lock (beside its checkpoint folder, which may be set aside), then
+    finds it complete."""
     if kind == "solver":
         return {"model": kind, "trained": False}
+    parent = S.ckpt_dir(results, kind).parent
+    with folder_lock(parent, name=f".{kind}.train.lock"):
+        return _train(exp, results, kind)
+
+
+def _train(exp: S.Experiment, results, kind: str) -> dict:
     path = generate.ready(exp, results)
     ckp = S.ckpt_dir(results, kind)
     side = ckp / "train.json"

@@ -154,6 +154,18 @@ def test_truncated_checkpoint_is_set_aside_and_trained_again(made):
     assert "is damaged" not in _make_table1(made)            # repaired: the next make trusts it
 
 
+def test_a_deleted_split_is_regenerated_in_one_line(made):
+    """A split deleted by hand used to make the next make try to set the missing file aside and crash
+    with a FileNotFoundError traceback, on every later make too."""
+    data = made / "sitl" / "data" / "2D_RPF"
+    original = (data / "valid.h5").read_bytes()
+    (data / "valid.h5").unlink()
+    out = _make_table1(made)
+    assert f"{(data / 'valid.h5').relative_to(ROOT)}: missing" in out and "generating the dataset again" in out, out[-3000:]
+    assert "Traceback" not in out
+    assert (data / "valid.h5").read_bytes() == original        # regenerated: the same data (deterministic)
+
+
 def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(made):
     """One make repairs all three (the split's regeneration re-evaluates every model anyway)."""
     data = made / "sitl" / "data" / "2D_RPF"
@@ -174,3 +186,29 @@ def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(
     assert f"{metrics.relative_to(ROOT)}: damaged (not readable as JSON" in out and "evaluating solver again" in out
     assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
     assert "Solver only (paper)" in table.read_text()
+
+
+def test_a_second_training_of_one_model_waits_for_the_first(tmp_path):
+    """Two trainings of one model at once used to write into one folder: now the second waits for the
+    first's lock (held here by the test) and writes nothing meanwhile."""
+    import signal
+    import time
+
+    from lab.lock import folder_lock
+
+    sys_py = ROOT / ".venv-lb" / "bin" / "python"
+    ckp_parent = tmp_path / "sitl" / "ckp"
+    with folder_lock(ckp_parent, name=".gns.train.lock"):
+        proc = subprocess.Popen([str(sys_py), str(ROOT / "sitl" / "train.py"), "--profile", "smoke", "--results",
+                                 str(tmp_path), "--model", "gns"], cwd=ROOT, env=_env(), stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+        lines, t0 = [], time.time()
+        while time.time() - t0 < 120:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if "waiting for it" in line or proc.poll() is not None:
+                break
+        assert any("being written by pid" in x and "waiting for it" in x for x in lines), "".join(lines)
+        assert proc.poll() is None and not (ckp_parent / "gns").exists()
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
