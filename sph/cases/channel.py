@@ -5,8 +5,9 @@ Geometry (scene coordinates): the box is [0, length) x [0, height + 2 layers dx)
 The fluid fills [0, length) x [off, off + height) with off = layers * dx (cell-centred lattice,
 optionally with Gaussian position noise of std noise_factor * dx on the fluid only, wrapped in x);
 `layers` rows of wall particles lie below (y < off) and above (y >= off + height), over the full
-length. The flow is driven by a body force (effects.gravity, e.g. (2.3, 0)); the solver zeroes the
-acceleration of wall particles.
+length. The flow is driven by a body force (effects.gravity, e.g. (2.3, 0)), or by the top wall
+moving at `wall_velocity` along x (tag MOVING_WALL: plane Couette flow, `couette_profile`); the
+solver zeroes the acceleration of wall particles.
 
 With effects.heat every wall particle is a Dirichlet particle (scene.T_fixed): T_ref everywhere
 except the bottom-wall segment |x - hot_center| < hot_half_width (all its layers), held at T_hot.
@@ -21,7 +22,7 @@ from ..domain import Domain
 from ..heat import TemperatureZone
 from ..lattice import cartesian, check_run_size, count
 from ..scene import Scene
-from ..state import FLUID, WALL
+from ..state import FLUID, MOVING_WALL, WALL
 
 
 def _whole(value: float, dx: float, what: str) -> int:
@@ -55,7 +56,8 @@ def zones(dx: float, length: float, zone_layers: int, T_ref: float) -> tuple:
 def scene(dx: float, material: Material, effects: Effects, length: float = 1.0, height: float = 0.2,
           layers: int = 3, noise_factor: float = 0.0, seed: int = 123, T_ref: float = 1.0,
           T_hot: float = 1.23, hot_center: float = None, hot_half_width: float = 0.25, zone_layers: int = 3,
-          name: str = "channel2d") -> Scene:
+          wall_velocity: float = 0.0, name: str = "channel2d") -> Scene:
+    """The channel at spacing dx (module docstring); `wall_velocity` moves the top wall along x."""
     nx = _whole(length, dx, "length")
     _whole(height, dx, "height")
     if layers < 1:
@@ -72,7 +74,8 @@ def scene(dx: float, material: Material, effects: Effects, length: float = 1.0, 
     assert len(bottom) == len(top) == nx * layers
     r = np.concatenate([fluid, bottom, top])
     n_f, n_w = len(fluid), len(bottom)
-    tag = np.concatenate([np.full(n_f, FLUID), np.full(2 * n_w, WALL)]).astype(np.int32)
+    top_tag = MOVING_WALL if wall_velocity else WALL
+    tag = np.concatenate([np.full(n_f, FLUID), np.full(n_w, WALL), np.full(n_w, top_tag)]).astype(np.int32)
     normal = np.concatenate([np.zeros_like(fluid), np.tile([0.0, 1.0], (n_w, 1)), np.tile([0.0, -1.0], (n_w, 1))])
     extra = {}
     if effects.heat:
@@ -80,5 +83,19 @@ def scene(dx: float, material: Material, effects: Effects, length: float = 1.0, 
         extra = dict(T=np.where(hot, T_hot, T_ref).astype(float), T_fixed=tag != FLUID,
                      T_zones=zones(dx, length, zone_layers, T_ref))
     box = (float(length), float(height + 2 * off))
+    u = np.zeros_like(r)
+    u[tag == MOVING_WALL, 0] = wall_velocity
     return Scene(name=name, dx=dx, domain=Domain(box=box, periodic=(True, False)), material=material,
-                 effects=effects, r=r, u=np.zeros_like(r), tag=tag, normal=normal, **extra)
+                 effects=effects, r=r, u=u, tag=tag, normal=normal, **extra)
+
+
+def couette_profile(y, t, wall_velocity: float, height: float, nu: float, n_modes: int = 200) -> np.ndarray:
+    """u(y, t) of plane Couette flow started from rest (the top wall set moving at t = 0), y from the
+    bottom wall face: U y / H - (2 U / pi) sum_n (-1)^(n+1) / n sin(n pi y / H) exp(-nu (n pi / H)^2 t)
+    (the steady linear profile minus the decaying transient; Schlichting & Gersten, Boundary-Layer
+    Theory, Sec. 15.1)."""
+    y = np.asarray(y, float)
+    n = np.arange(1, n_modes + 1)[:, None]
+    k = n * np.pi / height
+    transient = ((-1.0) ** (n + 1) / n * np.sin(k * y[None, :]) * np.exp(-nu * k**2 * t)).sum(axis=0)
+    return wall_velocity * (y / height - 2.0 / np.pi * transient)
