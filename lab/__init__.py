@@ -11,11 +11,13 @@
   cli.py           a script's command line (`profile_main`) and one-line errors (`main_guard`)
   stamp.py         make stamps: a run step's manifest of exactly the current runs (note_current)
   deliver.py       deliverables verified on every make: re-made when their inputs or files differ
-  xla_cpu.py       XLA's CPU flags for the pair sums, set by the entry points
+  experiment.py    the experiment-folder protocol (config.yaml + study.py + plot_<name>.py): the rest
   layout.py        where a study writes (results/<profile>/<name>/<method>_<tag>/) and its code key
   study.py         a study's methods, relaxed periodic starts, run spec and sweep (TGV 2D / 3D)
   tgv2d.py         the 2D Taylor-Green study's settings and fingerprints; tgv2d_runs.py its runs and
                    metrics (experiments/tgv2d and the accuracy atlas's TGV sweep run them)
+  lock.py, atomic.py, other_load.py   one writer per folder, atomic writes, the load beside a timing
+XLA's CPU flag is the core's (`sph.set_cpu_defaults`); the entry points (`cli.main_guard`) set it.
 
 Imports go from here to the core only (`sph.errors`, `sph.simulate`, ...). Which of these modules can
 change a run's numbers, and so enter its cache key, is `keys.NUMBER_NEUTRAL`'s complement (the study
