@@ -149,6 +149,30 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     return session.result(step0)
 
 
+def states_at(solver, state, nbrs, times, fluid_only: bool = True, chunk: int = 500) -> list:
+    """The states at `times` (a list, in the order given), advanced from `state` at t = 0 with the
+    solver's step guard (a blow-up raises, naming the step). Each time must be a whole number of
+    steps (within 1e-9 dt): another time raises a ValueError naming it and the two nearest ones,
+    rather than being skipped. `fluid_only`: the fluid particles' rows only (walls left out)."""
+    steps = []
+    for t in times:
+        k = t / solver.dt
+        if not (np.isfinite(k) and k >= -1e-9 and abs(k - round(k)) <= 1e-9 * max(1.0, abs(k))):
+            lo = max(0, int(np.floor(k))) if np.isfinite(k) else 0
+            raise ValueError(f"times: t = {t!r} is not a whole number of steps dt = {solver.dt:.6g}; the nearest are "
+                             f"{lo * solver.dt:.10g} and {(lo + 1) * solver.dt:.10g}")
+        steps.append(int(round(k)))
+    fluid = np.asarray(solver.scene.fluid_mask)
+    jitted = jax.jit(make_chunk(solver.step_fn, chunk, guard=solver.guard))
+    done, out = 0, {}
+    for k in sorted(set(steps)):
+        if k > done:
+            state, nbrs, _ = advance(jitted, solver.neighbors, state, nbrs, done, k - done)
+            done = k
+        out[k] = jax.tree_util.tree_map(lambda x: x[fluid], state) if fluid_only else state
+    return [out[k] for k in steps]
+
+
 def _checked(solver, t_end, write_every, step0, n_steps, u_limit, reorder_every) -> tuple:
     """(n_total, u_limit, reorder_every) of `run`, defaults filled in; a ValueError for a bad one."""
     if write_every < 1:
