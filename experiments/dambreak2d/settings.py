@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import sph
-from lab.configtools import load_profile, require, require_finite, to_mapping
+from lab.configtools import load_profile, require, require_agree, require_finite, to_mapping
 from lab.keys import digest
 from lab.layout import Study, dx_tag
 
@@ -102,8 +102,8 @@ class Experiment:
                     f"{c.width} x {c.height} does not fit into the tank {self.tank.length} x {self.tank.height}")
             for key, size in (("width", c.width), ("height", c.height)):
                 n = size / self.dx
-                require(abs(n - round(n)) < 1e-6, f"columns[{i}].{key}",
-                        f"{size} is not a whole number of particle spacings dx = {self.dx}")
+                require_agree(abs(n - round(n)) < 1e-6, (f"columns[{i}].{key}", "dx"),
+                              f"{size} is not a whole number of particle spacings dx = {self.dx}")
         require(self.dx > 0, "dx", f"must be positive, got {self.dx}")
         fx = self.effects
         require(fx.gravity is not None and len(fx.gravity) == 2 and fx.gravity[0] == 0 and fx.gravity[1] < 0,

@@ -8,7 +8,7 @@ from typing import Optional
 
 import sph
 from sph.cases import tgv3d
-from lab.configtools import load_profile, require, require_finite, to_mapping
+from lab.configtools import load_profile, require, require_agree, require_finite, to_mapping
 from lab.keys import digest
 from lab.layout import Study
 from lab.study import Method, check_methods, check_output
@@ -85,9 +85,9 @@ class Experiment:
                 f"Re = rho_ref u_ref / eta = {self.re:g} differs from reference_re = {self.reference_re:g}: the "
                 "runs would be compared with the wrong reference")
         require(reference_path(self).is_file(), "reference", f"{reference_path(self)} does not exist")
-        require(self.analysis.dissipation_span < self.t_end / 2, "analysis.dissipation_span",
-                f"must be below t_end / 2 = {self.t_end / 2:g} (the central difference needs frames on both sides), "
-                f"got {self.analysis.dissipation_span}")
+        require_agree(self.analysis.dissipation_span < self.t_end / 2, ("analysis.dissipation_span", "t_end"),
+                      f"must be below t_end / 2 = {self.t_end / 2:g} (the central difference needs frames on both "
+                      f"sides), got {self.analysis.dissipation_span}")
 
     @property
     def re(self) -> float:

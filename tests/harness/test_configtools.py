@@ -31,3 +31,34 @@ def test_a_sweep_listing_a_spacing_twice_is_refused(tmp_path):
     spec.loader.exec_module(settings)
     with pytest.raises(sph.ConfigError, match=r"profiles\.smoke\.dx\[1\]: 0\.05 appears twice"):
         settings.load("smoke")
+
+
+def _settings(folder):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"settings_{folder.name}", folder / "settings.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("name, edit, blamed", [
+    ("dambreak2d", {"dx": 0.3}, r"profiles\.smoke\.dx: .*not a whole number of particle spacings"),
+    ("tgv3d", {"t_end": 0.6}, r"profiles\.smoke\.t_end: .*must be below t_end / 2"),
+])
+def test_a_rule_between_keys_blames_the_key_the_user_changed(tmp_path, name, edit, blamed):
+    """A dx change was blamed on `columns[0].height`, a t_end change on `analysis.dissipation_span`
+    (keys the user never touched): the key changed since the last commit comes first."""
+    import subprocess
+
+    import yaml
+
+    folder = copied_experiment(name, tmp_path / "experiments" / name)   # its references at ../../validation_refs
+    (tmp_path / "validation_refs").symlink_to(ROOT / "validation_refs")
+    for cmd in (["init", "-q"], ["add", "-A"], ["-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "copy"]):
+        subprocess.run(["git", *cmd], cwd=tmp_path, check=True, capture_output=True)
+    cfg = yaml.safe_load((folder / "config.yaml").read_text())
+    cfg["profiles"]["smoke"].update(edit)                      # the user's edit, not committed
+    (folder / "config.yaml").write_text(yaml.safe_dump(cfg))
+    with pytest.raises(sph.ConfigError, match=blamed + r".*\(changed since the last commit\)"):
+        _settings(folder).load("smoke")
