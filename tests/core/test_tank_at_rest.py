@@ -4,7 +4,6 @@ measurements of 2026-12-06 (dx = H / 10, t = 10 sqrt(H/g)), each about 3x: a reg
 direction fails. See sph.cases.tank.AT_REST_EFFECTS for the evidence."""
 import jax
 import numpy as np
-import pytest
 
 import sph
 from sph import simulate

@@ -2,10 +2,8 @@
 `make <copy>` runs it cached, its table holds the Laplace error, its figure is made, and a second
 make re-runs nothing. The physics bound is test_surface_tension's; here the pipeline."""
 import subprocess
-from pathlib import Path
 
 import pandas as pd
-import pytest
 
 from sph_test_helpers import ROOT, copied_experiment
 
