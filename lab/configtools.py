@@ -95,7 +95,7 @@ def _check_tuple(value, args, key, allow_inf):
         return tuple(_check_type(v, args[0], f"{key}[{i}]", allow_inf) for i, v in enumerate(value))
     if len(args) != len(value):
         raise ConfigError(f"{key}: expected {len(args)} entries, got {len(value)}")
-    return tuple(_check_type(v, a, f"{key}[{i}]", allow_inf) for i, (v, a) in enumerate(zip(args, value)))
+    return tuple(_check_type(v, a, f"{key}[{i}]", allow_inf) for i, (v, a) in enumerate(zip(value, args)))
 
 
 def _check_float(value, key, allow_inf):

@@ -179,6 +179,9 @@ class Monitor:
                        energy_drift=float(np.max(e - np.minimum.accumulate(e)) / e[0]),
                        energy_end=float(e[-1] / e[0] - 1.0))
             out["energy_rise_above_initial"] = float(np.max(e - e[0]) / e[0])
+            t = s["t"].to_numpy()
+            late = t >= 0.75 * t[-1]
+            out["rest_speed"] = float(s["u_max"].to_numpy()[late].max() / np.sqrt(self.geo.g * case.column[1]))
         elif kind == "tgv":
             t, e, ex = s["t"].to_numpy(), s["e_kin"].to_numpy(), s["e_kin_exact"].to_numpy()
             window = ex >= EKIN_WINDOW * ex[0]

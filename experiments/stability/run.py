@@ -56,6 +56,7 @@ CRITERION_TEXTS = (
     ("thermal_drift_max", "abs(E_th/E_th0-1) <= {v:g}"),
     ("overshoot_max", "T stays in its initial range within {v:g} of it"),
     ("dt_limit", "the {v} dt limit binds"),
+    ("rest_speed_max", "at rest: max abs(u) / sqrt(gH) <= {v:g} over the last quarter"),
 )
 """Each criterion of `S.Criteria` in words, {v} its value: the criterion column of the table."""
 
@@ -81,7 +82,8 @@ def failed_checks(case: "S.Case", m: dict) -> list:
               ("ekin_relerr", c.ekin_relerr_max, m.get("energy_drift") if kind == "tgv" else None),
               ("ekin_rise", c.ekin_rise_max, m.get("ekin_rise_max")),
               ("thermal_drift", c.thermal_drift_max, m.get("energy_drift") if kind == "heat" else None),
-              ("overshoot", c.overshoot_max, m.get("T_overshoot"))]
+              ("overshoot", c.overshoot_max, m.get("T_overshoot")),
+              ("rest_speed", c.rest_speed_max, m.get("rest_speed"))]
     for name, limit, value in checks:
         if limit is not None and (value is None or not np.isfinite(value) or value > limit):
             bad.append(name)

@@ -43,6 +43,8 @@ class Criteria:
     thermal_drift_max   heat: max over frames of |E_th / E_th(0) - 1|, E_th = sum m c_p T
     overshoot_max       heat: largest excursion of T beyond its initial [min, max] / (max - min)
     dt_limit            the time-step limit that must be the binding one (e.g. "thermal"), or null
+    rest_speed_max      tank at rest (a dam_break case whose column fills the tank's width): max |u| of
+                        the fluid over the last quarter of the run / sqrt(g H), H the column height
     """
 
     density_error_max: Optional[float] = 0.05
@@ -53,6 +55,7 @@ class Criteria:
     thermal_drift_max: Optional[float] = None
     overshoot_max: Optional[float] = None
     dt_limit: Optional[str] = None
+    rest_speed_max: Optional[float] = None
 
 
 @dataclass(frozen=True)

@@ -62,3 +62,19 @@ def test_a_rule_between_keys_blames_the_key_the_user_changed(tmp_path, name, edi
     (folder / "config.yaml").write_text(yaml.safe_dump(cfg))
     with pytest.raises(sph.ConfigError, match=blamed + r".*\(changed since the last commit\)"):
         _settings(folder).load("smoke")
+
+
+def test_a_fixed_length_tuple_key_is_parsed_entry_by_entry():
+    """`tuple[float, float]` keys (the stability suite's column / tank) were parsed with types and
+    values swapped: a config that set one failed with a TypeError far from the config."""
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class Box:
+        size: tuple[float, float] = (1.0, 1.0)
+
+    assert configtools.from_mapping(Box, {"size": [2, 0.5]}).size == (2.0, 0.5)
+    with pytest.raises(sph.ConfigError, match=r"size\[1\]: expected a number"):
+        configtools.from_mapping(Box, {"size": [2.0, "x"]})
+    with pytest.raises(sph.ConfigError, match=r"size: expected 2 entries, got 3"):
+        configtools.from_mapping(Box, {"size": [1.0, 2.0, 3.0]})
