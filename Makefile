@@ -110,7 +110,8 @@ all-targets: $(PAPER_TARGETS) all-sitl stability
 all-sitl:
 	+$(MAKE) --no-print-directory $(SITL_TARGETS) PROFILE=$(SITL_PROFILE) RESULTS=$(dir $(RESULTS))$(SITL_PROFILE)
 
-report: | $(VENV)
+# the report reads every target's outputs: the targets asked beside it (`make -j2 fig5 report`) finish first
+report: | $(VENV) $(filter-out report snapshot restore readme-tables clean clean-expensive,$(MAKECMDGOALS))
 	$(PY) -m report.build --profile $(PROFILE) --results $(RESULTS)
 
 snapshot: | $(VENV)

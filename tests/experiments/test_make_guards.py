@@ -66,3 +66,12 @@ def test_the_atlas_waits_for_the_experiments_asked_beside_it():
 
     assert "| .venv/.stamp fig9" in atlas_rule("fig9", "accuracy")
     assert atlas_rule("accuracy").rstrip().endswith("| .venv/.stamp")
+
+
+def test_the_report_waits_for_the_targets_asked_beside_it():
+    """`make -j2 fig5 report` could build the report before fig5's figure: now every target asked
+    beside it is an order-only prerequisite of the report (make's own database shows it)."""
+    out = subprocess.run(["make", "-p", "-n", "fig5", "report", "PROFILE=smoke", "RESULTS=/tmp/sph-guard"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120).stdout
+    rule = next(line for line in out.splitlines() if line.startswith("report:"))
+    assert "| .venv/.stamp fig5" in rule
