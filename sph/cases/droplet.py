@@ -10,9 +10,10 @@ discretization.
 Recipe (`METHOD`, `NUMERICS`): standard SPH with summation density and JAX-SPH's EoS background
 pressure 0.01 p_ref (against the tensile instability where the pressure oscillates below zero);
 u_ref = 2 sqrt(sigma / (rho R)) makes c_ref = 10 u_ref large enough that the Laplace pressure
-compresses the droplet by about 1 %. The transport-velocity formulation is not the recipe: its
-background pressure resists the compression the jump needs (dx 0.02, t = 0.5: the jump oscillates
-about half of sigma / R). The pressure reaches the jump by viscous settling, t ~ R^2 rho / eta.
+compresses the droplet by about 1 %. The transport-velocity formulation is not the recipe: at dx
+0.02 to t = 0.5 its jump oscillated about half of sigma / R (likely its background pressure resisting
+the compression the jump needs; not run longer, not tested further). The pressure reaches the jump
+by viscous settling, t ~ R^2 rho / eta.
 """
 import numpy as np
 
