@@ -27,6 +27,23 @@ SHARED_SMOKE = ROOT / ".pytest_cache" / "shared-results" / "smoke"
 folder, never the repository's results/smoke."""
 
 
+def require_lb_env() -> None:
+    """Fail (not skip) when LagrangeBench's environment .venv-lb is missing."""
+    import pytest
+
+    if not (ROOT / ".venv-lb" / ".stamp").exists():
+        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+
+
+def seed_sitl_dataset(results) -> None:
+    """Copy the shared smoke RPF dataset (SHARED_SMOKE) into `results` when there is one, so that a test
+    file need not generate it again; make checks the copy against the digests generate.json recorded
+    (another file may be writing it) and regenerates a damaged one."""
+    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
+    if (shared / "generate.json").exists():
+        shutil.copytree(shared, Path(results) / "sitl" / "data" / "2D_RPF")
+
+
 def lattice(dx, dim=2):
     """Cell-centred lattice filling the periodic unit square/cube."""
     return cartesian([0.0] * dim, [1.0] * dim, dx)

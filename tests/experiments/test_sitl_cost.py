@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sph_test_helpers import SHARED_SMOKE
+from sph_test_helpers import require_lb_env, seed_sitl_dataset
 
 from experiments.accuracy import atlas as A
 from experiments.accuracy import settings as AS
@@ -52,12 +52,9 @@ def _make(results):
 
 @pytest.fixture(scope="module")
 def cost(tmp_path_factory):
-    if not (ROOT / ".venv-lb" / ".stamp").exists():
-        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+    require_lb_env()
     results = tmp_path_factory.mktemp("results")
-    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
-    if (shared / "generate.json").exists():
-        shutil.copytree(shared, S.data_dir(results))
+    seed_sitl_dataset(results)
     proc = _make(results)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     with (S.out_dir(results) / "cost.csv").open() as f:

@@ -7,14 +7,13 @@ training noise (sitl/noise_response.py) is linear and of the expected size. FAIL
 .venv-lb is missing."""
 import json
 import os
-import shutil
 import subprocess
 import textwrap
 from pathlib import Path
 
 import pytest
 
-from sph_test_helpers import SHARED_SMOKE
+from sph_test_helpers import seed_sitl_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 LB_PYTHON = ROOT / ".venv-lb" / "bin" / "python"
@@ -293,9 +292,7 @@ def _smoke_dataset(tmp_path) -> Path:
     file may be writing it: make checks the copy against its recorded digests and regenerates a
     damaged one), else generated (make sitl-data PROFILE=smoke, ~30 s)."""
     results = tmp_path / "smoke"
-    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
-    if (shared / "generate.json").exists():
-        shutil.copytree(shared, results / "sitl" / "data" / "2D_RPF")
+    seed_sitl_dataset(results)
     env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")
     env.pop("VIRTUAL_ENV", None)
     proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=env,

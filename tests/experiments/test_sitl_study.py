@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from sph_test_helpers import SHARED_SMOKE
+from sph_test_helpers import require_lb_env, seed_sitl_dataset
 
 from sitl import settings as S
 
@@ -43,12 +43,9 @@ def _make(results):
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    if not (ROOT / ".venv-lb" / ".stamp").exists():
-        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+    require_lb_env()
     results = tmp_path_factory.mktemp("results")
-    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
-    if (shared / "generate.json").exists():
-        shutil.copytree(shared, S.data_dir(results))
+    seed_sitl_dataset(results)
     proc, wall = _make(results)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     out = results / "sitl_study"
