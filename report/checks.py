@@ -27,13 +27,27 @@ class CheckResult:
     value_trace: Trace
     paper: Optional[float]
     paper_trace: Optional[Trace]
-    paper_where: str
+    source_kind: str             # docs/paper_values.yaml source.kind of the compared value ('' without one)
+    source_locator: str
     reference: str
     tol_kind: Optional[str]
     tol: Optional[float]
     tol_trace: Optional[Trace]
     tol_why: str
     passed: Optional[bool]
+    group: Optional[str] = None  # a key of the target's `groups`; None: a headline check
+
+    @property
+    def is_paper(self) -> bool:
+        """The compared value is the paper's own (its text or a figure read off), not a reference's."""
+        return self.source_kind in paper.PAPER_KINDS
+
+    @property
+    def source_label(self) -> str:
+        """'authors' code: tumaer/jax-sph ...' for the report's source column ('' without a value)."""
+        if not self.source_kind:
+            return ""
+        return f"{paper.KIND_LABELS.get(self.source_kind, self.source_kind)}: {self.source_locator}"
 
 
 def yaml_trace(target: str, cid: str, key: str, values_path=paper.PAPER_VALUES) -> Trace:
@@ -64,6 +78,7 @@ def evaluate(target: str, cid: str, check: dict, results, values: dict, values_p
                absolute=bool(check.get("absolute")), scale=float(check.get("scale", 1.0)))
     value = safe_value(vt)
     p = check.get("paper")
+    src = check.get("source") or {}
     pt = yaml_trace(target, cid, "paper", values_path) if p is not None else None
     tol = dict(check.get("tolerance") or {})
     why = tol.pop("why", "")
@@ -72,6 +87,8 @@ def evaluate(target: str, cid: str, check: dict, results, values: dict, values_p
     tt = yaml_trace(target, cid, f"tolerance.{kind}", values_path) if tv is not None else None
     return CheckResult(cid=cid, label=check["label"], unit=check.get("unit", ""), value=value, value_trace=vt,
                        paper=float(p) if p is not None else None, paper_trace=pt,
-                       paper_where=check.get("paper_where", ""), reference=paper.reference_text(values, check.get("reference")),
+                       source_kind=str(src.get("kind", "")) if p is not None else "",
+                       source_locator=str(src.get("locator", "")) if p is not None else "",
+                       reference=paper.reference_text(values, check.get("reference")),
                        tol_kind=kind, tol=tv, tol_trace=tt, tol_why=why,
-                       passed=judge(value, float(p) if p is not None else None, kind, tv))
+                       passed=judge(value, float(p) if p is not None else None, kind, tv), group=check.get("group"))

@@ -5,9 +5,9 @@ import html
 import os
 from pathlib import Path
 
-from . import fmt, timing
+from . import fmt, provenance, timing
 from .atlas import OTHER_LOAD_NOTE, setting_label
-from .markdown import NO_REASON, SMOKE_NOTE
+from .markdown import NO_REASON, SMOKE_NOTE, value_header, value_word, verdict_cells
 from .model import Report, TargetReport
 from .paper import ROOT
 
@@ -45,47 +45,63 @@ class Page:
 
 
 def summary(p: Page) -> list:
-    out = ["<h2>Summary</h2>", "<table><tr><th>target</th><th>paper</th><th>verdict</th><th>wall time of the runs</th>"
-           "<th>ms per step</th></tr>"]
+    out = ["<h2>Summary</h2>", '<p class="note">Verdict: what the paper\'s figure or table shows; beyond the paper: '
+           "our own checks against data the paper does not use, each with its own verdict.</p>",
+           "<table><tr><th>target</th><th>paper</th><th>verdict</th><th>beyond the paper</th>"
+           "<th>wall time of the runs</th><th>ms per step</th></tr>"]
     for t in p.rep.targets:
         wall, ms = timing.cells(p.num, t.timing) if t.run else ("-", "-")
         prof = f" ({esc(t.profile)} profile)" if t.fallback else ""
+        v, beyond = verdict_cells(t)
+        v = p.verdict(t.verdict) + esc(v[len(t.verdict):])
         out.append(f'<tr><td class="label"><a href="#{t.name}">{esc(t.name)}</a>{prof}</td>'
-                   f'<td class="label">{esc(t.paper_where)}</td><td class="label">{p.verdict(t.verdict)}</td>'
-                   f"<td>{wall}</td><td>{ms}</td></tr>")
+                   f'<td class="label">{esc(t.paper_where)}</td><td class="label">{v}</td>'
+                   f'<td class="label">{esc(beyond)}</td><td>{wall}</td><td>{ms}</td></tr>')
     return out + ["</table>"]
 
 
 def tolerance(p: Page, c) -> str:
     if c.tol_kind is None:
         return "-"
+    w = value_word(c)
     body = {"max": lambda: f"&le; {p.num(c.tol_trace, c.unit)}", "min": lambda: f"&ge; {p.num(c.tol_trace, c.unit)}",
-            "abs": lambda: f"paper &plusmn; {p.num(c.tol_trace, c.unit)}",
-            "factor": lambda: f"within a factor {p.num(c.tol_trace)} of the paper",
-            "below_paper": lambda: "&le; paper"}[c.tol_kind]()
+            "abs": lambda: f"{w} &plusmn; {p.num(c.tol_trace, c.unit)}",
+            "factor": lambda: f"within a factor {p.num(c.tol_trace)} of the {w}",
+            "below_paper": lambda: f"&le; {w}"}[c.tol_kind]()
     return f'<span title="{esc(c.tol_why)}">{body}</span>'
 
 
-def checks_table(p: Page, t: TargetReport) -> list:
-    if not t.checks:
+def checks_table(p: Page, checks: list) -> list:
+    if not checks:
         return []
-    out = ["<table><tr><th>quantity</th><th>here</th><th>paper</th><th>reference</th><th>tolerance</th><th>verdict</th></tr>"]
-    for c in t.checks:
+    out = [f"<table><tr><th>quantity</th><th>here</th><th>{value_header(checks)}</th><th>source</th>"
+           "<th>reference data</th><th>tolerance</th><th>verdict</th></tr>"]
+    for c in checks:
         here = p.num(c.value_trace, c.unit, c.value) if c.value is not None else "n/a (not in this profile's outputs)"
         pap = p.num(c.paper_trace, c.unit) if c.paper_trace is not None else "-"
-        if c.paper_where and c.paper_trace is not None:
-            pap += f'<br><span class="note">{esc(c.paper_where)}</span>'
         v = {True: "within", False: "outside", None: "-"}[c.passed]
         out.append(f'<tr><td class="label">{esc(c.label)}</td><td>{here}</td><td>{pap}</td>'
+                   f'<td class="label">{esc(c.source_label) or "-"}</td>'
                    f'<td class="label">{esc(c.reference) or "-"}</td><td>{tolerance(p, c)}</td>'
                    f'<td class="label">{v}</td></tr>')
     return out + ["</table>"]
+
+
+def group_section(p: Page, t: TargetReport, g) -> list:
+    head = f"beyond the paper: {g.title}" if g.beyond_paper else g.title
+    out = [f'<h3 id="{t.name}-{g.gid}">{esc(t.paper_where)}, {esc(head)}</h3>', f"<p>Verdict: {p.verdict(g.verdict)}.</p>"]
+    out += checks_table(p, g.checks)
+    if g.verdict == "differs":
+        out.append(f"<p><b>Why it differs:</b> {esc(g.reason or NO_REASON)} (details: {p.link(t.readme)})</p>")
+    return out
 
 
 def target_section(p: Page, t: TargetReport) -> list:
     out = [f'<h2 id="{t.name}">{esc(t.paper_where)}: {esc(t.title)}</h2>',
            f"<p>Verdict: {p.verdict(t.verdict)}. Experiment: {p.link(t.readme)}; "
            f"<code>make {esc(t.make)} PROFILE={esc(t.profile)}</code>.</p>"]
+    if t.paper_locator:
+        out.append(f'<p class="note">In the paper: {esc(t.paper_locator)}.</p>')
     if t.fallback:
         out.append(f'<p class="note">Shown from the <b>{esc(t.profile)}</b> profile (the {esc(p.rep.profile)} '
                    "profile of this target needs a GPU and was not run here).</p>")
@@ -98,13 +114,15 @@ def target_section(p: Page, t: TargetReport) -> list:
         out.append(f'<p><img src="{esc(p.links[str(f)])}" alt="{esc(t.name)}: {esc(f.name)}"></p>')
     for f in t.missing_figures:
         out.append(f'<p class="note">figure not made: {esc(os.path.relpath(f, p.rep.results))}</p>')
-    out += checks_table(p, t)
+    out += checks_table(p, t.checks)
     if t.verdict == "differs":
         out.append(f"<p><b>Why it differs:</b> {esc(t.reason or NO_REASON)} (details: {p.link(t.readme)})</p>")
+    for g in t.groups:
+        out += group_section(p, t, g)
     if t.timing:
         wall, ms = timing.cells(p.num, t.timing)
         n = p.num(t.timing["n"]) if "n" in t.timing else "-"
-        out.append(f"<p>Wall time of the {n} runs (solve): {wall}; ms per step: {ms}.</p>")
+        out.append(f"<p>Wall time of the {n} {esc(t.count_label)} (solve): {wall}; ms per step: {ms}.</p>")
     return out
 
 
@@ -156,7 +174,7 @@ def stability_section(p: Page) -> list:
 
 
 def provenance_section(p: Page) -> list:
-    rows = "".join(f'<tr><th>{esc(k)}</th><td class="label">{esc(v)}</td></tr>' for k, v in p.rep.provenance.items())
+    rows = "".join(f'<tr><th>{esc(k)}</th><td class="label">{esc(v)}</td></tr>' for k, v in provenance.display(p.rep.provenance).items())
     return ['<h2 id="provenance">Provenance</h2>', f'<table class="provenance">{rows}</table>',
             f'<p class="note">Paper values and tolerances: {p.link("docs/paper_values.yaml")}. Hover a number '
             "for the file, row and column it comes from.</p>"]

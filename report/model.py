@@ -12,6 +12,19 @@ VERDICTS = ("reproduced", "differs", "figure only", "not evaluated", "as expecte
 
 
 @dataclass
+class GroupReport:
+    """Checks judged apart from a target's headline (docs/paper_values.yaml `groups`): a second reading
+    of the paper's claim (Fig. 2's two starts) or, beyond_paper, our own check against data the paper
+    does not use (Fig. 8's experiments); each with its own verdict."""
+    gid: str
+    title: str
+    beyond_paper: bool
+    checks: list
+    verdict: str
+    reason: str = ""
+
+
+@dataclass
 class TargetReport:
     name: str
     title: str
@@ -29,6 +42,17 @@ class TargetReport:
     reason: str = ""
     note: str = ""
     beyond_paper: bool = False
+    groups: list = field(default_factory=list)   # GroupReport, in the file's order
+    count_label: str = "runs"                    # what the timing's count `n` counts
+    paper_locator: str = ""                      # where in the paper (docs/paper_values.yaml paper.locator)
+
+    @property
+    def paper_groups(self) -> list:
+        return [g for g in self.groups if not g.beyond_paper]
+
+    @property
+    def beyond_groups(self) -> list:
+        return [g for g in self.groups if g.beyond_paper]
 
 
 @dataclass
@@ -69,10 +93,24 @@ def verdict(entry: dict, run: bool, results_: list, stab: list) -> str:
         return "atlas" if entry.get("make") == "accuracy" else "not evaluated"
     if entry.get("qualitative"):
         return "figure only"
+    return judged_verdict(results_)
+
+
+def judged_verdict(results_: list) -> str:
     judged = [c.passed for c in results_ if c.passed is not None]
     if not judged:
         return "not evaluated"
     return "reproduced" if all(judged) else "differs"
+
+
+def group_reports(entry: dict, run: bool, cks: list) -> list:
+    out = []
+    for gid, g in (entry.get("groups") or {}).items():
+        mine = [c for c in cks if c.group == gid]
+        v = judged_verdict(mine) if run else "not run"
+        out.append(GroupReport(gid=gid, title=g.get("title", gid), beyond_paper=bool(g.get("beyond_paper")),
+                               checks=mine, verdict=v, reason=(g.get("reason") or "").strip() if v == "differs" else ""))
+    return out
 
 
 def target_report(name: str, entry: dict, results: Path, profile: str, values: dict, values_path) -> TargetReport:
@@ -82,11 +120,15 @@ def target_report(name: str, entry: dict, results: Path, profile: str, values: d
     tim = timing.traces(entry, res)
     run = _has_outputs(entry, res)
     stab = stability.matrix(res / "stability" / "stability.csv") if name == "stability" and run else []
-    v = verdict(entry, run, cks, stab)
+    groups = group_reports(entry, run, cks)
+    beyond = {g.gid for g in groups if g.beyond_paper}
+    v = verdict(entry, run, [c for c in cks if c.group not in beyond], stab)
     return TargetReport(name=name, title=entry["title"], paper_where=entry["paper"]["where"], readme=entry["readme"],
                         make=entry.get("make", name), profile=prof, fallback=prof != profile, run=run,
                         figures=[f for f in figs if f.exists()], missing_figures=[str(f) for f in figs if not f.exists()],
-                        checks=cks, timing={k: t for k, t in tim.items() if safe_value(t) is not None}, verdict=v,
+                        checks=[c for c in cks if c.group is None], groups=groups,
+                        count_label=(entry.get("timing_count") or {}).get("label", "runs"),
+                        paper_locator="" if entry.get("beyond_paper") else entry["paper"].get("locator", ""), timing={k: t for k, t in tim.items() if safe_value(t) is not None}, verdict=v,
                         reason=entry.get("reason", "").strip() if v == "differs" else "",
                         note=entry.get("note", "") or entry.get("qualitative_note", ""),
                         beyond_paper=bool(entry.get("beyond_paper")))

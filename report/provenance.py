@@ -23,10 +23,19 @@ def _git(*args) -> str:
         return ""
 
 
+DIRTY = " (with uncommitted changes)"
+
+
+def dirty_paths() -> list:
+    """The tracked files whose working copy differs from HEAD (`git status --porcelain`, untracked
+    files left out): what a record made now would carry that the commit does not."""
+    out = _git("status", "--porcelain", "--untracked-files=no")
+    return [line.split(None, 1)[1] for line in out.splitlines() if len(line.split(None, 1)) == 2]
+
+
 def commit() -> str:
     sha = _git("rev-parse", "HEAD") or "unknown"
-    dirty = _git("status", "--porcelain", "--untracked-files=no")
-    return sha + (" (with uncommitted changes)" if dirty else "")
+    return sha + (DIRTY if dirty_paths() else "")
 
 
 def cpu_model() -> str:
@@ -95,3 +104,9 @@ def restored(results) -> str:
         return ""
     r = json.loads(p.read_text())
     return f"{', '.join(r['folders'])}: from the snapshot of {r['commit']} ({r['date']})"
+
+
+def display(prov: dict) -> dict:
+    """The provenance as the report's table shows it: a list (a dirty snapshot's changed paths and
+    files) condensed to its length and where to read it in full."""
+    return {k: (f"{len(v)} (listed in {FILE})" if isinstance(v, list) else v) for k, v in prov.items()}

@@ -11,10 +11,11 @@ Tables (`tables`): `tgv2d` (Figs. 4-5, fig5/metrics.csv), `table1` (Table 1, tab
 `atlas` (the cheapest setting per error level, accuracy/runs.csv), `figures` (the key figures
 with one sentence each, `readme_caption` in docs/paper_values.yaml), `cavity`, `dambreak`, `heat`
 (Figs. 6-8, 10: report/readme_walls.py), `gradients` (Figs. 1-2: report/readme_gradients.py),
-`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `sitl_study`,
+`fig9` (report/readme_tgv3d.py), `stability` (report/readme_stability.py), `verdicts` and
+`provenance` (the report's verdicts, the snapshot's commit and date: report/readme_verdicts.py), `sitl_study`,
 `sitl_table1` and `sitl_cost` (Solver-in-the-Loop, report/readme_sitl.py); these modules build
-on this one's helpers. `make readme-tables` regenerates every README of `READMES` (the top-level one
-and the experiments' own, which show the same generated tables in their Results sections).
+on this one's helpers. `make readme-tables` regenerates every page of `READMES` (the top-level
+README, the topic pages of docs/ and the experiments' READMEs, which show the same generated tables).
 Only marked tables are touched; an unknown marker or a missing snapshot is an error; a table whose
 target is not in the snapshot yet says so (no number). Table 1 and Fig. 3 are taken from the
 sibling `cpu` snapshot when the paper one has none (labelled); Table 1 shows each mean with its
@@ -197,7 +198,7 @@ def figures(snapshot: Path, readme: Path) -> list:
 def tables(snapshot: Path, readme: Path, profile: str) -> dict:
     # imported here: these modules build on this one's helpers
     from . import readme_gradients as G, readme_sitl as Si, readme_stability as St, readme_tgv3d as T3
-    from . import readme_walls as W
+    from . import readme_verdicts as V, readme_walls as W
 
     return {"tgv2d": lambda: tgv2d(snapshot), "table1": lambda: table1(snapshot),
             "atlas": lambda: atlas_table(snapshot, profile), "figures": lambda: figures(snapshot, readme),
@@ -205,6 +206,7 @@ def tables(snapshot: Path, readme: Path, profile: str) -> dict:
             "heat": lambda: W.heat(snapshot), "gradients": lambda: G.gradients(snapshot),
             "gradcheck": lambda: G.gradcheck(snapshot), "inverse": lambda: G.inverse(snapshot),
             "fig9": lambda: T3.fig9(snapshot), "stability": lambda: St.stability(snapshot),
+            "verdicts": lambda: V.verdicts(snapshot, readme, profile), "provenance": lambda: V.provenance(snapshot),
             **Si.tables(snapshot)}
 
 
@@ -233,12 +235,13 @@ def markers(text: str) -> list:
     return [m.group("name") for m in MARKER.finditer(text)]
 
 
-READMES = ("README.md", "sitl/README.md", "experiments/tgv2d/README.md", "experiments/tgv3d/README.md",
+READMES = ("README.md", "docs/results.md", "sitl/README.md", "experiments/tgv2d/README.md", "experiments/tgv3d/README.md",
            "experiments/ldc2d/README.md", "experiments/dambreak2d/README.md", "experiments/thermal/README.md",
            "experiments/stability/README.md", "experiments/accuracy/README.md", "gradcheck/README.md",
            "inverse/README.md")
-"""The READMEs (relative to the repository root) whose marked tables `make readme-tables` regenerates
-and tests/experiments/test_report.py checks against the committed snapshot."""
+"""The pages (relative to the repository root) whose marked tables `make readme-tables` regenerates
+and tests/experiments/test_report.py checks against the committed snapshot: the README, the topic
+pages of docs/ and the experiments' READMEs."""
 
 
 def main(argv=None) -> int:

@@ -4,7 +4,13 @@ commit (<= 10 MB in all; checked). A target the committed snapshot holds and the
 fresh clone that ran one target) is never dropped silently: the snapshot refuses, naming it, until
 `make restore` has seeded results/ from the committed snapshot (or DROP=1 says to drop it).
 
-    python -m report.snapshot --profile paper [--results results/paper] [--out docs/results/paper]
+A snapshot records the commit it was made at, so it refuses a working tree with uncommitted changes
+to tracked files (naming them): commit first. `--allow-dirty` (`make snapshot DIRTY=1`) makes it
+anyway and marks every file as made from that tree: provenance.json gets `dirty_tree: true`, the
+changed paths and the list of every file of the snapshot, and the README's generated provenance line
+says so.
+
+    python -m report.snapshot --profile paper [--results results/paper] [--out docs/results/paper] [--allow-dirty]
 
 What is copied, keeping the paths below results/<profile>/: the figures named in
 docs/paper_values.yaml (as palette PNGs at most 1400 px wide), every csv / md table of a target
@@ -55,12 +61,12 @@ def copy_results(src: Path, dst: Path, figure_paths) -> int:
     return n
 
 
-SITL_RECORDS = ("train.json", "generate.json", "budget.json", "authors_force.json")
+SITL_RECORDS = ("train.json", "curve.jsonl", "generate.json", "budget.json", "authors_force.json")
 
 
 def sitl_records(src: Path) -> list:
     """The SitL runs' own records, so that a restored run is current without its checkpoint
-    (sitl/study.py `stored_row`): each training's train.json, each evaluation's metrics/<model>.json,
+    (sitl/study.py `stored_row`): each training's train.json and learning curve, each evaluation's metrics/<model>.json,
     each dataset's generate.json / metadata.json, the equal-cost budget, the authors'-force result;
     below sitl/ (Table 1's runs, once Table 1 or the study has written its table) and sitl_study/,
     never through a run's link to the shared dataset. Checkpoints, rollouts and data stay out, and so
@@ -129,14 +135,26 @@ def dropped(groups) -> list:
     return [f"{dst.name}/{n}" for src, dst in groups for n in folders(dst) if n not in have[src]]
 
 
-def snapshot(profile: str, results, out, drop: bool = False) -> Path:
+class DirtyTree(RuntimeError):
+    """The working tree has uncommitted changes to tracked files: a snapshot would name a commit whose
+    files it was not made from."""
+
+
+def snapshot(profile: str, results, out, drop: bool = False, allow_dirty: bool = False) -> Path:
     """Replace the snapshot in `out` by the finished report of `results`; refuses (RuntimeError, naming
-    them) to drop a folder the snapshot holds and the results lack, unless `drop`."""
+    them) to drop a folder the snapshot holds and the results lack, unless `drop`, and (DirtyTree) a
+    working tree with uncommitted changes, unless `allow_dirty`, which marks every file as made from it."""
     results, out = Path(results).resolve(), Path(out).resolve()
     page = results / "report" / "index.html"
     if not page.exists():
         raise FileNotFoundError(f"{page}: no finished report; run `make report PROFILE={profile}` first")
-    made_at = provenance.commit()  # before the copy below rewrites tracked files of docs/results
+    changed = provenance.dirty_paths()  # before the copy below rewrites tracked files of docs/results
+    if changed and not allow_dirty:
+        shown = ", ".join(changed[:8]) + (f" and {len(changed) - 8} more" if len(changed) > 8 else "")
+        raise DirtyTree(f"the working tree has uncommitted changes ({shown}): commit them first, so that the "
+                        f"snapshot names the commit it was made from, or DIRTY=1 (--allow-dirty) to mark every "
+                        f"file of the snapshot as made from a dirty tree")
+    made_at = provenance.commit()
     entries = paper.targets()
     rep = model.build(results, profile)
     groups = {}  # (source folder, destination folder) -> figure paths
@@ -155,15 +173,23 @@ def snapshot(profile: str, results, out, drop: bool = False) -> Path:
         if dst.exists():
             shutil.rmtree(dst)
     n = sum(copy_results(src, dst, figs) for (src, dst), figs in groups.items())
+    bench = copy_bench(results.parent / "bench", out.parent / "bench")
     prov = json.loads((results / "report" / provenance.FILE).read_text()) \
         if (results / "report" / provenance.FILE).exists() else provenance.collect(profile)
     prov.update({"snapshot_date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
                  "snapshot_commit": made_at})
+    for key in ("dirty_tree", "dirty_paths", "dirty_files"):
+        prov.pop(key, None)  # a report's own provenance never carries an older snapshot's marks
     for _, dst in groups:
         own = dict(prov, profile=profiles[dst]) if profiles[dst] == profile else \
             dict(prov, profile=profiles[dst], shown_in=f"the {profile} report")
+        if changed:  # --allow-dirty: every file of this folder named as made from the dirty tree
+            files = [str(f.relative_to(dst)) for f in dst.rglob("*") if f.is_file()] + [provenance.FILE]
+            if dst == out:  # the report rebuilt below, and the benchmark tables copied beside
+                files += [f"report/{n}" for n in ("index.html", "report.md", provenance.FILE)] + \
+                    [f"../bench/{n}" for n in bench]
+            own.update({"dirty_tree": True, "dirty_paths": changed, "dirty_files": sorted(set(files))})
         (dst / provenance.FILE).write_text(json.dumps(own, indent=2) + "\n")
-    bench = copy_bench(results.parent / "bench", out.parent / "bench")
     build.write(model.build(out, profile), out / "report", copy_figures=False)
     total = size_mb(*{d for _, d in groups}, out.parent / "bench")
     print(f"snapshot -> {out}: {n} files, {total:.2f} MB; {len(bench)} benchmark tables -> {out.parent / 'bench'}",
@@ -181,9 +207,12 @@ def main(argv=None) -> int:
     ap.add_argument("--results", default=None)
     ap.add_argument("--out", default=None)
     ap.add_argument("--drop", action="store_true", help="allow the new snapshot to lack targets the old one holds")
+    ap.add_argument("--allow-dirty", action="store_true",
+                    help="snapshot a working tree with uncommitted changes, marking every file as made from it")
     a = ap.parse_args(argv)
     try:
-        snapshot(a.profile, a.results or f"results/{a.profile}", a.out or f"docs/results/{a.profile}", a.drop)
+        snapshot(a.profile, a.results or f"results/{a.profile}", a.out or f"docs/results/{a.profile}", a.drop,
+                 a.allow_dirty)
     except (FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -21,7 +21,9 @@ def _cols(c):
 
 def traces(target: dict, results) -> dict:
     """{'wall', 'compile', 'ms_min', 'ms_max', 'n'}: traces into the target's timing file (absent keys:
-    the target has no such column); {} when the target names no timing file."""
+    the target has no such column); {} when the target names no timing file. `n` counts the rows, or
+    with `timing_count: {agg: cells}` the non-empty cells of the wall columns (Table 1: one row, two
+    trainings)."""
     if not target.get("timing"):
         return {}
     f = (Path(results) / target["timing"]).resolve()
@@ -30,7 +32,7 @@ def traces(target: dict, results) -> dict:
     out = {}
     if cols["wall"]:
         out["wall"] = Trace(f, _cols(cols["wall"]), where, agg="sum", display="duration")
-        out["n"] = Trace(f, _cols(cols["wall"]), where, agg="count")
+        out["n"] = Trace(f, _cols(cols["wall"]), where, agg=(target.get("timing_count") or {}).get("agg", "count"))
     if cols["compile"]:
         out["compile"] = Trace(f, _cols(cols["compile"]), where, agg="sum", display="duration")
     if cols["ms"]:

@@ -3,7 +3,7 @@
 A `Trace` names a file (a metrics csv, a run record, docs/paper_values.yaml), the row (`where`:
 column = value; `min` / `max` pick the row with the smallest / largest value of that column), the
 column (several columns are added up per row), an aggregate over the selected rows (sum, min, max,
-count; none: exactly one row must match), and how it is shown (absolute value, scale, as a
+count, cells: the non-empty cells; none: exactly one row must match), and how it is shown (absolute value, scale, as a
 duration). `value()` reads it; the report writes every number with its trace beside it (HTML: a
 `data-src` attribute and a tooltip; markdown: a footnote), and the tests resolve each trace again
 and compare it with the number shown.
@@ -122,6 +122,8 @@ def _read_value(path: Path, column, where: tuple, agg) -> float:
             return float(vals.iloc[0])
         if agg == "count":
             return float(len(t))
+        if agg == "cells":  # the non-empty cells of the columns over the rows (e.g. one row, two trainings)
+            return float(sum(int(pd.to_numeric(t[c], errors="coerce").notna().sum()) for c in cols))
         if not len(t):
             raise TraceError(f"{path}: no row matches {where}")
         return float(getattr(vals, agg)())

@@ -17,38 +17,29 @@ Writes results/<profile>/sitl/metrics/solver_authors_force.json (never read by T
 """
 import dataclasses
 import json
-import warnings
 
 from sitl import common as C  # first: it sets up LagrangeBench
 
-import haiku as hk
 import jax
 import jax.numpy as jnp
 import numpy as np
 from lagrangebench import infer
 from lagrangebench.evaluate import averaged_metrics
 
-import sph
 from sitl import generate
-from sitl import model as M
 from sitl import settings as S
 from sitl.evaluate import KEYS, per_window, summary
-from sph.forces import ConstantForce
 from lab.cli import profile_main
 
 
 def uniform_force_model(exp: S.Experiment, data_train, case_fns):
-    """The solver-only module whose body force is the authors' uniform (+g, 0)."""
-    meta = data_train.metadata
-    setup = M.make_setup(meta, case_fns.normalization_stats, data_train[0][0][:, 0], exp.model.substeps,
-                         exp.train.dtype, exp.model.capacity_multiplier)
-    scene = dataclasses.replace(setup.solver.scene, body_force=ConstantForce((float(meta["g_ext_magnitude"]), 0.0)))
-    with warnings.catch_warnings():  # the coarse substep exceeds the CFL limit by design, as in model.py
-        warnings.filterwarnings("ignore", message=".*exceeds the .* time-step limit")
-        solver = sph.build_solver(scene, setup.solver.numerics)
-    r_sample = jnp.asarray(data_train[0][0][:, 0], setup.dtype)
-    setup = dataclasses.replace(setup, solver=solver, sph_nbrs=solver.neighbors.allocate(r_sample))
-    return hk.without_apply_rng(hk.transform_with_state(lambda x: M.SolverInTheLoop(setup, correction=False)(x)))
+    """The solver-only module whose body force is the authors' uniform (+g, 0) (model.solver_force)."""
+    return C.model(uniform_force(exp), "solver", data_train, case_fns)
+
+
+def uniform_force(exp: S.Experiment) -> S.Experiment:
+    """The experiment with the authors' uniform force in the in-loop solver."""
+    return dataclasses.replace(exp, model=dataclasses.replace(exp.model, solver_force="uniform"))
 
 
 def evaluate(exp: S.Experiment, results, kind: str) -> dict:

@@ -33,10 +33,16 @@ def eval_windows(exp: S.Experiment, path, n_windows: int = None):
     return [np.asarray(data_test[i][0], dtype=np.float64) for i in range(n)], box, meta
 
 
-def _steps(exp: S.Experiment, windows: list, box: np.ndarray) -> np.ndarray:
+def _steps(exp: S.Experiment, windows: list, box: np.ndarray, moving: bool = False) -> np.ndarray:
+    """(windows, rollout steps) MSE of particles frozen at the last input frame, or (`moving`) moving
+    on with its last velocity: r^k = r^0 + k d(r^0, r^-1)."""
     isl, n = exp.model.input_seq_length, exp.eval.n_rollout_steps
-    return np.array([np.mean(wrap(pos[:, isl:isl + n] - pos[:, isl - 1:isl], box) ** 2, axis=(0, 2))
-                     for pos in windows])  # per rollout step: mean over particles and coordinates
+    k = np.arange(1, n + 1)[None, :, None]
+    out = []
+    for pos in windows:
+        v = wrap(pos[:, isl - 1:isl] - pos[:, isl - 2:isl - 1], box) if moving else 0.0
+        out.append(np.mean(wrap(pos[:, isl:isl + n] - pos[:, isl - 1:isl] - k * v, box) ** 2, axis=(0, 2)))
+    return np.array(out)  # per rollout step: mean over particles and coordinates
 
 
 def _e_kin(exp: S.Experiment, windows: list, box: np.ndarray, meta: dict) -> list:
@@ -73,3 +79,15 @@ def frozen(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
     return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
             "e_kin": float(np.mean(per["e_kin"])), "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)),
             "n_windows": len(per["mse20"]), "per_window": per}
+
+
+def constant_velocity(exp: S.Experiment, path, n_boot: int = 2000) -> dict:
+    """{"mse5", "mse20", "ci_mse20", "n_windows", "per_window"}: particles moving on with their last
+    velocity (r^k = r^0 + k d(r^0, r^-1), no learning, no physics) on the same test windows: the
+    floor of sense a model must beat to have learned any dynamics."""
+    windows, box, _ = eval_windows(exp, path)
+    steps = _steps(exp, windows, box, moving=True)
+    per = {"mse5": [float(s[:5].mean()) for s in steps], "mse20": [float(s[:20].mean()) for s in steps]}
+    return {"mse5": float(np.mean(per["mse5"])), "mse20": float(np.mean(per["mse20"])),
+            "ci_mse20": list(stats.bootstrap_ci(per["mse20"], n_boot)), "n_windows": len(per["mse20"]),
+            "per_window": per}

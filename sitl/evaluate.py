@@ -131,6 +131,24 @@ def rollouts_intact(results, kind: str, done: dict) -> bool:
     return True
 
 
+def weights(results, kind: str, model, case, sample):
+    """(params, state, checkpoint folder or None) of `kind`: its best checkpoint (GNS, SitL), or the
+    solver's (no weights) initialised at `sample`."""
+    if kind == "solver":
+        features, _ = case.allocate_eval(sample)
+        params, state = model.init(jax.random.PRNGKey(0), (features, sample[1]))
+        return params, state, None
+    ckp = S.ckpt_dir(results, kind) / "best"
+    if not (ckp / "params_tree.pkl").exists():
+        raise FileNotFoundError(f"{ckp}: no trained {kind}; run sitl/train.py --model {kind} first")
+    bad = integrity.unreadable_checkpoint(ckp)
+    if bad is not None:
+        raise OutputError(f"{bad[0]}: {bad[1]}; `make table1` (sitl/train.py --model {kind}) sets the "
+                          "checkpoint aside and trains again")
+    params, state, _, _ = load_haiku(str(ckp))
+    return params, state, ckp
+
+
 def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force: bool = False,
              sinkhorn: bool = True, timing: bool = True) -> dict:
     """Evaluate `kind` on the test windows (module docstring). rollouts: keep them (pkl, for Fig. 3);
@@ -149,19 +167,7 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
     model = C.model(exp, kind, data_train, case)
     pos, ptype = data_test[0]
     sample = (jnp.asarray(pos[:, :exp.model.input_seq_length]), jnp.asarray(ptype))
-    if kind == "solver":
-        features, _ = case.allocate_eval(sample)
-        params, state = model.init(jax.random.PRNGKey(0), (features, sample[1]))
-        ckp = None
-    else:
-        ckp = S.ckpt_dir(results, kind) / "best"
-        if not (ckp / "params_tree.pkl").exists():
-            raise FileNotFoundError(f"{ckp}: no trained {kind}; run sitl/train.py --model {kind} first")
-        bad = integrity.unreadable_checkpoint(ckp)
-        if bad is not None:
-            raise OutputError(f"{bad[0]}: {bad[1]}; `make table1` (sitl/train.py --model {kind}) sets the "
-                             "checkpoint aside and trains again")
-        params, state, _, _ = load_haiku(str(ckp))
+    params, state, ckp = weights(results, kind, model, case, sample)
     rdir = S.rollout_dir(results, kind)
     if rdir.exists():
         shutil.rmtree(rdir)

@@ -4,13 +4,18 @@ LagrangeBench's Trainer and `infer` accept (Toshev et al. 2024, Sec. 5, App. B, 
 One coarse step of Delta t = dt * write_every (LagrangeBench's frame interval) from the input
 positions r^{-1}, r^0 (features["abs_pos"], after LagrangeBench's noise):
 
-    u = d(r^0, r^{-1}) / Delta t                      (the velocity LagrangeBench sees, physical units)
+    u = d(r^0, r^{-1}) / Delta t                      (the velocity LagrangeBench sees, physical units;
+                                                       model.start "consistent" adds (Delta t / 2)(1 - 1/W) a)
     repeat L times, delta t = Delta t / L:
         rho  = summation density at r;  p = Tait(rho) with the data's background pressure
-        a    = our SPH momentum (standard, viscous) + the RPF body force      (sph.build_solver)
-             + GNN(r, u) * sigma_a / Delta t^2        (the corrector: LagrangeBench's GNS, its normalised
-                                                       output scaled to physical units; skipped entirely
-                                                       when correction=False: "solver only")
+        a    = our SPH momentum (standard, viscous) + the RPF body force      (sph.build_solver; the
+                                                       authors' uniform one with model.solver_force)
+             + GNN(r, u, f, [a, i]) * sigma_a / Delta t^2  (the corrector: LagrangeBench's GNS, its
+                                                       normalised output scaled to physical units; f the
+                                                       data's per-particle force, LagrangeBench's feature;
+                                                       with model.extra_inputs also the solver's a and the
+                                                       substep index i; skipped entirely when
+                                                       correction=False: "solver only")
         u   += delta t a;   r = shift(r, delta t u)   (symplectic Euler)
         SPH and graph neighbour lists updated at r; an overflow sets state['overflow'] and the output NaN
     output {"acc": (d(r^L, r^0) - d(r^0, r^{-1}) - mu_a) / sigma_a}
@@ -20,6 +25,7 @@ authors' version divided by Delta t^2 once more here (harmless only because mu_a
 solver with p_bg = 0 against data made with 0.05, and never checked its lists for overflow; all three
 are fixed here. Only the corrector's weights are parameters; gradients flow through every SPH substep.
 """
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -30,6 +36,7 @@ import numpy as np
 
 import sph
 from sph.cases import rpf
+from sph.forces import ConstantForce
 from sph.lattice import cartesian
 from sph.neighbors import make_neighbor_search
 
@@ -55,18 +62,28 @@ class Setup:
     acc_mean: jnp.ndarray
     acc_std: jnp.ndarray
     dtype: object
+    data_force: object = None
+    extra_inputs: tuple = ()
+    start_lag: float = 0.0
 
     def __repr__(self):  # haiku prints module arguments; never format the (traced) lists
         return f"Setup(substeps={self.substeps}, frame_dt={self.frame_dt:g}, n={self.solver.scene.n})"
 
 
-def coarse_solver(metadata: dict, substeps: int, dtype: str = "float32", capacity_multiplier: float = 1.5):
+def coarse_solver(metadata: dict, substeps: int, dtype: str = "float32", capacity_multiplier: float = 1.5,
+                  solver_force: str = "per_particle"):
     """Our SPH solver at the substep delta t = dt * write_every / substeps, with the dataset's
-    physics (metadata: dx, viscosity, g_ext_magnitude, p_bg_factor, c_ref_factor)."""
+    physics (metadata: dx, viscosity, g_ext_magnitude, p_bg_factor, c_ref_factor); `solver_force`
+    "uniform" replaces the data's per-particle RPF force by the authors' (+g, 0) for every particle."""
     dx = float(metadata["dx"])
+    g = metadata["g_ext_magnitude"]
     scene = rpf.scene(dx, sph.Material(rho_ref=metadata.get("rho_ref", 1.0), eta=metadata["viscosity"],
                                        u_ref=metadata.get("u_ref", 1.0)),
-                      sph.Effects(), r=cartesian([0.0, 0.0], list(rpf.BOX), dx), g=metadata["g_ext_magnitude"])
+                      sph.Effects(), r=cartesian([0.0, 0.0], list(rpf.BOX), dx), g=g)
+    if solver_force == "uniform":
+        scene = dataclasses.replace(scene, body_force=ConstantForce((float(g), 0.0)))
+    elif solver_force != "per_particle":
+        raise ValueError(f"model.solver_force: {solver_force!r} is not one of per_particle, uniform")
     numerics = sph.Numerics(kernel=metadata.get("kernel", "quintic"), h_factor=metadata.get("h_factor", 1.0),
                             c_ref_factor=metadata["c_ref_factor"], gamma=1.0, p_bg_factor=metadata["p_bg_factor"],
                             dt=metadata["dt"] * metadata["write_every"] / substeps, dtype=dtype,
@@ -79,9 +96,16 @@ def coarse_solver(metadata: dict, substeps: int, dtype: str = "float32", capacit
 
 
 def make_setup(metadata: dict, normalization_stats: dict, r_sample, substeps: int = 3, dtype: str = "float32",
-               capacity_multiplier: float = 1.5) -> Setup:
-    """Allocate the SPH and graph lists at positions `r_sample` (N, dim), e.g. a training frame."""
-    solver = coarse_solver(metadata, substeps, dtype, capacity_multiplier)
+               capacity_multiplier: float = 1.5, solver_force: str = "per_particle", extra_inputs: tuple = (),
+               start: str = "frame_average") -> Setup:
+    """Allocate the SPH and graph lists at positions `r_sample` (N, dim), e.g. a training frame
+    (the options: settings.Model's solver_force, extra_inputs and start)."""
+    solver = coarse_solver(metadata, substeps, dtype, capacity_multiplier, solver_force)
+    data_force = (solver if solver_force == "per_particle" else coarse_solver(metadata, substeps, dtype)).scene.body_force
+    w = int(metadata["write_every"])
+    frame_dt = float(metadata["dt"] * w)
+    if start not in ("frame_average", "consistent"):
+        raise ValueError(f"model.start: {start!r} is not one of frame_average, consistent")
     jdt = solver.dtype
     radius = float(metadata["default_connectivity_radius"])
     # a Verlet list (skin GRAPH_SKIN radius) from which `graph_features` keeps exactly the pairs closer
@@ -91,9 +115,11 @@ def make_setup(metadata: dict, normalization_stats: dict, r_sample, substeps: in
     r = jnp.asarray(r_sample, jdt)
     acc, vel = normalization_stats["acceleration"], normalization_stats["velocity"]
     return Setup(solver=solver, graph_search=graph, sph_nbrs=solver.neighbors.allocate(r), graph_nbrs=graph.allocate(r),
-                 frame_dt=float(metadata["dt"] * metadata["write_every"]), substeps=substeps, radius=radius,
+                 frame_dt=frame_dt, substeps=substeps, radius=radius,
                  vel_mean=jnp.asarray(vel["mean"], jdt), vel_std=jnp.asarray(vel["std"], jdt),
-                 acc_mean=jnp.asarray(acc["mean"], jdt), acc_std=jnp.asarray(acc["std"], jdt), dtype=jdt)
+                 acc_mean=jnp.asarray(acc["mean"], jdt), acc_std=jnp.asarray(acc["std"], jdt), dtype=jdt,
+                 data_force=data_force, extra_inputs=tuple(extra_inputs),
+                 start_lag=0.5 * frame_dt * (1.0 - 1.0 / w) if start == "consistent" else 0.0)
 
 
 def _safe_norm(x):
@@ -104,7 +130,7 @@ def _safe_norm(x):
 
 def graph_features(setup: Setup, r, u, nbrs) -> dict:
     """LagrangeBench's GNS features at positions r, velocity u (physical): normalised velocity in
-    per-frame units, the body force, and edges (receiver i <- sender j) with displacement / radius
+    per-frame units, the data's body force (per particle, whatever force the solver uses), and edges (receiver i <- sender j) with displacement / radius
     and its length. The edges are exactly LagrangeBench's graph at r: every pair closer than the
     connectivity radius at r, self edges included (its mask_self=False), nothing of the Verlet
     list's skin (`nbrs`, valid at r, holds a superset; the rest is masked out). Padded and masked
@@ -120,8 +146,27 @@ def graph_features(setup: Setup, r, u, nbrs) -> dict:
     senders = jnp.where(inside, senders, n)
     receivers = jnp.where(inside, rows, n)
     vel = (u * setup.frame_dt - setup.vel_mean) / setup.vel_std
-    return {"vel_hist": vel, "force": setup.solver.scene.body_force(r), "senders": senders, "receivers": receivers,
+    return {"vel_hist": vel, "force": setup.data_force(r), "senders": senders, "receivers": receivers,
             "rel_disp": rel, "rel_dist": dist}
+
+
+def corrector_inputs(setup: Setup, features: dict, a, substep: int) -> dict:
+    """The corrector's node inputs with model.extra_inputs appended to LagrangeBench's `force`
+    feature (which GNS concatenates with the velocities): "solver_acc", the solver's acceleration a
+    in the output's normalised units (a Delta t^2 / sigma_a), and "substep", the index of this
+    substep among L, one-hot. Without extras the features are LagrangeBench's own."""
+    extra = []
+    n = features["vel_hist"].shape[0]
+    for name in setup.extra_inputs:
+        if name == "solver_acc":
+            extra.append(a * setup.frame_dt**2 / setup.acc_std)
+        elif name == "substep":
+            extra.append(jnp.broadcast_to(jax.nn.one_hot(substep, setup.substeps, dtype=a.dtype), (n, setup.substeps)))
+        else:
+            raise ValueError(f"model.extra_inputs: {name!r} is not one of solver_acc, substep")
+    if not extra:
+        return features
+    return {**features, "force": jnp.concatenate([features["force"].astype(a.dtype), *extra], axis=-1)}
 
 
 def edge_set(features: dict, n: int) -> set:
@@ -157,14 +202,18 @@ class SolverInTheLoop(hk.Module):
         r, u = r0, v0 / s.frame_dt
         sph_nbrs, graph_nbrs = s.sph_nbrs, s.graph_nbrs
         overflow = jnp.zeros((), bool)
-        for _ in range(s.substeps):
+        if s.start_lag:  # model.start "consistent": the velocity at t0, not the last frame's average
+            sph_nbrs = solver.neighbors.update(r, sph_nbrs)
+            u = u + s.start_lag * solver.state_at(r, u, sph_nbrs).dudt
+        for i in range(s.substeps):
             sph_nbrs = solver.neighbors.update(r, sph_nbrs)
             overflow = overflow | sph_nbrs.did_buffer_overflow.astype(bool)
             a = solver.state_at(r, u, sph_nbrs).dudt
             if self.correction:
                 graph_nbrs = s.graph_search.update(r, graph_nbrs)
                 overflow = overflow | graph_nbrs.did_buffer_overflow.astype(bool)
-                a_n = self.gnn((graph_features(s, r, u, graph_nbrs), particle_type))["acc"]
+                features = corrector_inputs(s, graph_features(s, r, u, graph_nbrs), a, i)
+                a_n = self.gnn((features, particle_type))["acc"]
                 a = a + a_n * s.acc_std / s.frame_dt**2
             u = u + dt_sub * a
             r = solver.scene.domain.shift(r, dt_sub * u)
@@ -184,7 +233,8 @@ def build(kind: str, metadata: dict, normalization_stats: dict, r_sample, model_
                        model_cfg.num_mp_steps, 16)(x)
     elif kind in ("sitl", "solver"):
         setup = make_setup(metadata, normalization_stats, r_sample, model_cfg.substeps, dtype,
-                           model_cfg.capacity_multiplier)
+                           model_cfg.capacity_multiplier, model_cfg.solver_force, model_cfg.extra_inputs,
+                           model_cfg.start)
 
         def fn(x):
             return SolverInTheLoop(setup, correction=kind == "sitl", latent_size=model_cfg.latent_dim,

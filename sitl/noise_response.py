@@ -7,7 +7,9 @@ that into pressure accelerations of order c^2 (delta rho / rho) / dx. This scrip
 it: on a stored training frame, the RMS change of our coarse solver's acceleration (sitl/model.py's
 `coarse_solver`, the SitL substep's physics) when the positions get Gaussian noise of each std,
 in LagrangeBench's normalised units (a * Delta t^2 / acc_std, Delta t = the frame interval), beside
-the RMS of the clean acceleration in the same units. When the change dominates, the corrector is
+the RMS of the clean acceleration in the same units; and both in the units of the model trained at
+that noise (LagrangeBench normalises with sqrt(acc_std^2 + noise_std^2)), with the noise in units of
+the dataset's sigma_a. When the change dominates, the corrector is
 trained mostly to cancel the solver's reaction to noise that the test rollouts never contain.
 
 Writes results/<profile>/sitl/metrics/noise_response.json (committed by `make snapshot`).
@@ -42,11 +44,18 @@ def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, d
     rms_clean = float(np.sqrt(np.mean((a0 * scale) ** 2)))
     rng = np.random.default_rng(seed)
     rows = []
+    acc_std = np.asarray(meta["acc_std"])
     for s in stds:
         rn = solver.scene.domain.shift(r0, jnp.asarray(rng.normal(0.0, s, r0.shape), solver.dtype))
         a = np.asarray(solver.state_at(rn, u, solver.neighbors.update(rn, nbrs)).dudt)
+        # the units the model trained at this noise works in: LagrangeBench inflates the statistics,
+        # std = sqrt(acc_std^2 + noise_std^2) (data/utils.py get_dataset_stats)
+        scale_model = frame_dt**2 / np.sqrt(acc_std**2 + s**2)
         rows.append({"noise_std": float(s), "noise_over_dx": float(s / meta["dx"]),
-                     "rms_change": float(np.sqrt(np.mean(((a - a0) * scale) ** 2))), "rms_clean": rms_clean})
+                     "noise_over_sigma_a": float(s / np.sqrt(np.mean(acc_std**2))),
+                     "rms_change": float(np.sqrt(np.mean(((a - a0) * scale) ** 2))), "rms_clean": rms_clean,
+                     "rms_change_model_units": float(np.sqrt(np.mean(((a - a0) * scale_model) ** 2))),
+                     "rms_clean_model_units": float(np.sqrt(np.mean((a0 * scale_model) ** 2)))})
     return rows
 
 
@@ -65,8 +74,10 @@ def main(args):
     dest.write_text(json.dumps({"substeps": exp.model.substeps, "frame": frame, "seed": seed, "rows": rows},
                                indent=2) + "\n")
     for r in rows:
-        print(f"noise {r['noise_std']:.1e} ({r['noise_over_dx']:.1e} dx): SPH acceleration changes by "
-              f"{r['rms_change']:.3g} RMS (normalised units); the clean acceleration's RMS is {r['rms_clean']:.3g}")
+        print(f"noise {r['noise_std']:.1e} ({r['noise_over_dx']:.1e} dx, {r['noise_over_sigma_a']:.2g} sigma_a): SPH "
+              f"acceleration changes by {r['rms_change']:.3g} RMS (data-normalised units; "
+              f"{r['rms_change_model_units']:.3g} in the model's); the clean acceleration's RMS is {r['rms_clean']:.3g} "
+              f"({r['rms_clean_model_units']:.3g})")
     print(f"written {dest}", flush=True)
     return rows
 

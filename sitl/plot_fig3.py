@@ -1,10 +1,13 @@
 """Fig. 3 (Toshev et al. 2024): velocity magnitude per particle of the solver-only, GNS and SitL
-rollouts and the ground truth, at several coarse steps of one test rollout. The velocity is what
-LagrangeBench sees: the periodic displacement between consecutive frames over the frame interval
-dt * write_every (stamp s = s coarse steps after the last input frame; s = 0 is the input).
+rollouts and the ground truth, at several coarse steps of one test rollout (the paper's stamps reach
+500 coarse steps); beside it, the position MSE against the rollout step (mean over the test windows
+and their range). The velocity is what LagrangeBench sees: the periodic displacement between
+consecutive frames over the frame interval dt * write_every (stamp s = s coarse steps after the last
+input frame; s = 0 is the input).
 
-Reads the rollouts of sitl/evaluate.py (results/<profile>/sitl/rollouts/<model>/rollout_<i>.pkl);
-writes results/<profile>/fig3/fig3.png and .pdf.
+Reads the long rollouts of sitl/fig3_rollouts.py (results/<profile>/fig3/rollouts/<model>/); writes
+results/<profile>/fig3/fig3.{png,pdf} (stamps), fig3_mse.png and mse_steps.{csv,md} (MSE at steps
+1, 5, 20, 50, 100, 200, 500 as far as the rollouts reach).
 
     python sitl/plot_fig3.py --profile smoke
 """
@@ -28,34 +31,88 @@ ROWS = (("truth", "ground truth"), ("solver", "solver only"), ("gns", "GNS"), ("
 
 def speeds(traj: np.ndarray, box, frame_dt: float) -> np.ndarray:
     """|u| per frame (from the frame before): traj (T, N, dim) -> (T - 1, N)."""
-    d = traj[1:] - traj[:-1]
-    d = d - box * np.round(d / box)
-    return np.linalg.norm(d, axis=-1) / frame_dt
+    with np.errstate(invalid="ignore"):  # a diverged rollout's frames are inf: their speed is NaN, not plotted
+        d = traj[1:] - traj[:-1]
+        d = d - box * np.round(d / box)
+        return np.linalg.norm(d, axis=-1) / frame_dt
 
 
 def load(results, exp: S.Experiment) -> dict:
+    """{"truth": (T, N, dim), model: (T, N, dim)} of test rollout fig3.rollout, and {model: record}."""
+    from sitl.fig3_rollouts import out_dir
+
     i = exp.fig3.rollout
-    out = {}
+    out, records = {}, {}
     for m in exp.models:
-        p = S.rollout_dir(results, m) / f"rollout_{i}.pkl"
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: missing; run sitl/evaluate.py --model {m}")
-        note_input(p)
+        rec = out_dir(results) / m / "record.json"
+        p = out_dir(results) / m / f"rollout_{i}.pkl"
+        for f in (rec, p):
+            if not f.exists():
+                raise FileNotFoundError(f"{f}: missing; run sitl/fig3_rollouts.py (make fig3)")
+        note_input(rec, p)
         try:
+            records[m] = json.loads(rec.read_text())
             with p.open("rb") as f:
                 r = pickle.load(f)
         except Exception as e:  # noqa: BLE001 - any failure to read is damage, named with its file
-            raise OutputError(f"{p}: damaged ({type(e).__name__}); `make fig3` evaluates {m} again") from None
+            raise OutputError(f"{p.parent}: damaged ({type(e).__name__}); delete it and `make fig3` rolls out {m} "
+                              "again") from None
         out[m] = np.asarray(r["predicted_rollout"])
         out["truth"] = np.asarray(r["ground_truth_rollout"])
-    return out
+    return out, records
+
+
+TABLE_STEPS = (1, 5, 20, 50, 100, 200, 500)
+
+
+def mse_table(records: dict) -> list:
+    """Rows {model, step, mean, min, max, n_windows} of the MSE at TABLE_STEPS (within the rollouts)."""
+    rows = []
+    for m, rec in records.items():
+        a = np.asarray(rec["mse_steps"], np.float64)            # (windows, steps)
+        for k in TABLE_STEPS:
+            if k <= a.shape[1]:
+                col = a[:, k - 1]
+                rows.append({"model": m, "step": k, "mean": float(np.mean(col)), "min": float(np.min(col)),
+                             "max": float(np.max(col)), "n_windows": int(a.shape[0])})
+    return rows
+
+
+def plot_mse(records: dict, dest: Path, title: str):
+    fig, ax = plt.subplots(figsize=(5.5, 3.8), constrained_layout=True)
+    for (m, lab), color in zip(ROWS[1:], ("C0", "C2", "C1")):
+        if m not in records:
+            continue
+        a = np.asarray(records[m]["mse_steps"], np.float64)
+        steps = np.arange(1, a.shape[1] + 1)
+        ok = np.isfinite(a).all(axis=0)
+        ax.plot(steps[ok], a[:, ok].mean(axis=0), color=color, label=f"{lab} (mean of {a.shape[0]} windows)")
+        ax.fill_between(steps[ok], a[:, ok].min(axis=0), a[:, ok].max(axis=0), color=color, alpha=0.2)
+        if not ok.all():
+            ax.axvline(steps[~ok][0], color=color, ls=":", lw=1, label=f"{lab}: non-finite from step {steps[~ok][0]}")
+    ax.set(xscale="log", yscale="log", xlabel="rollout step (coarse steps)", ylabel="position MSE", title=title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.savefig(dest, dpi=130)
+    plt.close(fig)
+
+
+def write_table(rows: list, dest: Path):
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    df.to_csv(dest.with_suffix(".csv"), index=False)
+    lines = ["| model | step | MSE (mean) | min | max | windows |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r['model']} | {r['step']} | {r['mean']:.3g} | {r['min']:.3g} | {r['max']:.3g} | {r['n_windows']} |"
+              for r in rows]
+    dest.with_suffix(".md").write_text("\n".join(lines) + "\n")
 
 
 def plot(results, exp: S.Experiment, profile: str) -> Path:
     meta = json.loads((S.data_dir(results) / "metadata.json").read_text())
     box = np.array([b[1] - b[0] for b in meta["bounds"]])
     frame_dt = meta["dt"] * meta["write_every"]
-    trajs = load(results, exp)
+    trajs, records = load(results, exp)
     isl = exp.model.input_seq_length
     rows = [(k, lab) for k, lab in ROWS if k in trajs]
     stamps = exp.fig3.stamps
@@ -89,6 +146,8 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
     for ext in ("png", "pdf"):
         fig.savefig(dest / f"fig3.{ext}", dpi=150)
     plt.close(fig)
+    plot_mse(records, dest / "fig3_mse.png", f"RPF 2D, {profile}: MSE against rollout step")
+    write_table(mse_table(records), dest / "mse_steps.csv")
     print(f"fig3: {dest / 'fig3.png'}")
     return dest
 

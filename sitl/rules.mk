@@ -43,11 +43,15 @@ $(SITL_TABLE1): OUTS := $(SITL_TABLE1)
 $(SITL_TABLE1) &: $(SITL_METRICS) $(SITL)/table1.py $(SITL)/stats.py $(SITL)/fmt.py FORCE | $(SITL_VENV) $(VENV)
 	$(DELIVER) $(SITL_PY) $(SITL)/table1.py --profile $(PROFILE) --results $(RESULTS)
 
-SITL_FIG3 := $(RESULTS)/fig3/fig3.png $(RESULTS)/fig3/fig3.pdf
+# Fig. 3 over the paper's horizon: each trained model (its metrics made first, so its training is
+# current) rolled out fig3.steps coarse steps (sitl/fig3_rollouts.py, reused while its record's key
+# holds), then the stamps, the MSE against the rollout step and its table
+SITL_FIG3 := $(addprefix $(RESULTS)/fig3/,fig3.png fig3.pdf fig3_mse.png mse_steps.csv mse_steps.md)
 fig3: $(SITL_FIG3)
 $(SITL_FIG3): OUTS := $(SITL_FIG3)
-$(SITL_FIG3) &: $(SITL_METRICS) $(SITL)/plot_fig3.py FORCE | $(SITL_VENV) $(VENV)
-	$(DELIVER) $(SITL_PY) $(SITL)/plot_fig3.py --profile $(PROFILE) --results $(RESULTS)
+$(SITL_FIG3) &: $(SITL_METRICS) $(SITL)/fig3_rollouts.py $(SITL)/plot_fig3.py FORCE | $(SITL_VENV) $(VENV)
+	$(DELIVER) sh -c '$(SITL_ENV) $(SITL_PY) $(SITL)/fig3_rollouts.py --profile $(PROFILE) --results $(RESULTS) && \
+	  $(SITL_PY) $(SITL)/plot_fig3.py --profile $(PROFILE) --results $(RESULTS)'
 
 # Accuracy against cost (sitl/cost.py): MSE_20 against inference time per coarse step for the fine
 # solver, the solver alone at each cost.coarsening M, and GNS / SitL when their metrics are current.

@@ -98,6 +98,11 @@ class Data:
         return int(round(1.0 / self.dx)) * int(round(2.0 / self.dx))
 
 
+SOLVER_FORCES = ("per_particle", "uniform")
+EXTRA_INPUTS = ("solver_acc", "substep")
+STARTS = ("frame_average", "consistent")
+
+
 @dataclass(frozen=True)
 class Model:
     """GNS (LagrangeBench) and the SitL corrector share this architecture (paper App. B).
@@ -107,6 +112,16 @@ class Model:
     input_seq_length   positions per input (2 = one velocity)
     capacity_multiplier  SitL's in-model neighbour lists (SPH and graph), relative to the training
                        data's maximum; an overflow is never silent (NaN output, state['overflow'])
+    solver_force       the body force of SitL's in-loop solver (and of the solver alone):
+                       "per_particle", the data's own RPF force (paper Sec. 5), or "uniform", the
+                       authors' (+g, 0) for every particle (sitl/authors_force.py): a known bias the
+                       corrector can learn, since it always sees the data's per-particle force
+    extra_inputs       SitL's corrector inputs besides LagrangeBench's (velocity, the data's force,
+                       the graph): any of "solver_acc" (the solver's acceleration at this substep, in
+                       the output's normalised units) and "substep" (the substep index, one-hot)
+    start              the solver's first velocity from the two input frames: "frame_average"
+                       (u = d(r^0, r^-1) / Delta t, LagrangeBench's, the paper's) or "consistent"
+                       (u + (Delta t / 2)(1 - 1 / W) a(r^0), as sitl/cost.py's fine solver)
     """
 
     latent_dim: int = 64
@@ -115,6 +130,9 @@ class Model:
     substeps: int = 3
     input_seq_length: int = 2
     capacity_multiplier: float = 1.5
+    solver_force: str = "per_particle"
+    extra_inputs: tuple[str, ...] = ()
+    start: str = "frame_average"
 
     def __post_init__(self):
         require(self.latent_dim >= 1, "model.latent_dim", "must be >= 1")
@@ -124,6 +142,13 @@ class Model:
         require(self.input_seq_length == 2, "model.input_seq_length",
                 "SitL starts from one velocity: only 2 is supported")
         require(self.capacity_multiplier >= 1, "model.capacity_multiplier", "must be >= 1")
+        require(self.solver_force in SOLVER_FORCES, "model.solver_force",
+                f"{self.solver_force!r} is not one of {', '.join(SOLVER_FORCES)}")
+        for i, name in enumerate(self.extra_inputs):
+            require(name in EXTRA_INPUTS, f"model.extra_inputs[{i}]", f"{name!r} is not one of {', '.join(EXTRA_INPUTS)}")
+        require(len(set(self.extra_inputs)) == len(self.extra_inputs), "model.extra_inputs",
+                f"lists an input twice: {list(self.extra_inputs)}")
+        require(self.start in STARTS, "model.start", f"{self.start!r} is not one of {', '.join(STARTS)}")
 
 
 def check_pushforward(steps, unrolls, probs, prefix: str):
@@ -230,14 +255,20 @@ class Eval:
 
 @dataclass(frozen=True)
 class Fig3:
-    """Fig. 3: velocity magnitude of the test rollout `rollout` at these coarse steps."""
+    """Fig. 3: velocity magnitude of the test rollout `rollout` at these coarse steps, from rollouts
+    of `steps` coarse steps (the paper's stamps reach 500) from every test window that long
+    (sitl/fig3_rollouts.py), with the MSE against the rollout step beside it."""
 
     stamps: tuple[int, ...] = (0, 5, 10, 20)
     rollout: int = 0
+    steps: int = 20
 
     def __post_init__(self):
         require(len(self.stamps) >= 1 and all(s >= 0 for s in self.stamps), "fig3.stamps",
                 "needs non-negative coarse-step indices")
+        require(self.steps >= 1, "fig3.steps", f"must be >= 1, got {self.steps}")
+        require(max(self.stamps) <= self.steps, "fig3.stamps",
+                f"stamp {max(self.stamps)} lies beyond the rollout's fig3.steps = {self.steps}")
 
 
 @dataclass(frozen=True)
@@ -286,6 +317,15 @@ class Study:
                      None: no such runs
     overrides        keys over the whole profile for every study run (smoke: tiny sizes); a run whose
                      settings equal the profile's (e.g. SitL at the paper's noise) is Table 1's own
+    authors_table1   Table 1 as its authors ran it: the solver alone and SitL with the authors'
+                     uniform force in the in-loop solver (model.solver_force), GNS as before. The
+                     SitL run is the positive control: a known, learnable bias (the corrector sees the
+                     data's per-particle force), which it must remove (MSE_20 >= 10x below its solver's)
+    extra_inputs     is the correct-force residual learnable? SitL whose corrector also sees these
+                     (model.extra_inputs, e.g. [solver_acc, substep]); () = no such run
+    consistent_start the solver alone started with the velocity at t0 (model.start "consistent"):
+                     how much of its error is the start-up lag of the frame-averaged velocity
+    gns_noise        GNS's training noise sweep besides train.noise_std (LagrangeBench's RPF: 3e-4)
     """
 
     noise: tuple[float, ...] = (0.0, 1e-5, 3e-5, 3e-4)
@@ -295,10 +335,18 @@ class Study:
     authors_force_data: Any = None
     pushforward: Any = None
     overrides: Any = None
+    authors_table1: bool = True
+    extra_inputs: tuple[str, ...] = ("solver_acc", "substep")
+    consistent_start: bool = True
+    gns_noise: tuple[float, ...] = (3e-4, 1e-4)
 
     def __post_init__(self):
         for i, n in enumerate(self.noise):
             require(n >= 0, f"study.noise[{i}]", f"must be >= 0, got {n}")
+        for i, n in enumerate(self.gns_noise):
+            require(n >= 0, f"study.gns_noise[{i}]", f"must be >= 0, got {n}")
+        for i, name in enumerate(self.extra_inputs):
+            require(name in EXTRA_INPUTS, f"study.extra_inputs[{i}]", f"{name!r} is not one of {', '.join(EXTRA_INPUTS)}")
         for i, n in enumerate(self.substeps):
             require(n >= 1, f"study.substeps[{i}]", f"must be >= 1, got {n}")
         for key in ("authors_force_data", "pushforward", "overrides"):
@@ -334,8 +382,10 @@ class Experiment:
         valid = self.data.frames[1] // (self.model.input_seq_length + self.eval.n_rollout_steps) * self.data.seeds
         require(valid >= self.train.eval_n_trajs, "train.eval_n_trajs",
                 f"{self.train.eval_n_trajs} exceeds the {valid} windows of the valid split (raise data.frames[1])")
-        require(max(self.fig3.stamps) <= self.eval.n_rollout_steps, "fig3.stamps",
-                f"must be <= eval.n_rollout_steps = {self.eval.n_rollout_steps}")
+        require(self.data.frames[2] >= self.model.input_seq_length + self.fig3.steps, "fig3.steps",
+                f"{self.fig3.steps} coarse steps need input_seq_length + fig3.steps = "
+                f"{self.model.input_seq_length + self.fig3.steps} test frames per seed, data.frames[2] is "
+                f"{self.data.frames[2]}")
         w = self.data.write_every
         for i, m in enumerate(self.cost.coarsening):
             require(w % m == 0, f"cost.coarsening[{i}]",

@@ -62,9 +62,21 @@ MIN_WINDOWS = 10
 """Fewer windows than this never decide a comparison (a bootstrap over 2 windows is no interval)."""
 
 
-def verdict(lo: float, hi: float, n: int = MIN_WINDOWS) -> str:
-    """A ratio interval against 1 from n windows: 'lower', 'higher' or 'undecided' (it contains 1, is
-    NaN, or rests on fewer than MIN_WINDOWS windows)."""
+EQUIVALENCE_MARGIN = 0.01
+"""Two models are "equal" when the paired interval of their ratio lies inside 1 +- this margin: a
+difference that small is below what separates two training seeds (the cpu study: 0.04 %) only by
+luck, and is no difference a reader should act on."""
+
+EQUAL = f"equal within +-{EQUIVALENCE_MARGIN:.0%}"
+
+
+def verdict(lo: float, hi: float, n: int = MIN_WINDOWS, margin: float = EQUIVALENCE_MARGIN) -> str:
+    """A ratio interval from n windows: EQUAL when it lies inside [1 - margin, 1 + margin] (checked
+    first: a ratio of 1.0002 [1.0001, 1.0003] is equal, not higher), else 'lower' or 'higher' when
+    it excludes 1, else 'undecided' (it contains 1 but reaches beyond the margin, is NaN, or rests
+    on fewer than MIN_WINDOWS windows)."""
     if not (math.isfinite(lo) and math.isfinite(hi)) or n < MIN_WINDOWS:
         return "undecided"
+    if 1.0 - margin <= lo and hi <= 1.0 + margin:
+        return EQUAL
     return "lower" if hi < 1.0 else "higher" if lo > 1.0 else "undecided"

@@ -51,7 +51,7 @@ from lab.configtools import merge
 from lab.lock import folder_lock
 
 HERE = Path(__file__).resolve().parent
-GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force")
+GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force", "authors", "learnability", "fair_gns")
 PAPER_SOLVER = {"mse5": 1.7e-7, "mse20": 7.9e-6, "e_kin": 0.13, "sinkhorn": 3.4e-7}  # paper Table 1
 
 
@@ -103,6 +103,21 @@ def runs(exp: S.Experiment) -> list:
                                                                 f"training seed {seed}", {"train": {"seed": seed}}))
     out.append(Run("authors_force", "solver", "authors_force", f"solver only, L={l0}: per-particle vs authors' "
                                                                 "uniform force"))
+    if st.authors_table1:
+        uni = {"model": {"solver_force": "uniform"}}
+        out.append(Run(f"solver_L{l0}_uniform", "solver", "authors", f"solver only, L={l0}, authors' uniform force", uni))
+        out.append(Run("sitl_uniform", "sitl", "authors", f"SitL, L={l0}, noise {_g(t.sitl_noise_std)}, authors' "
+                                                          "uniform force in the loop (positive control)", uni))
+    if st.extra_inputs:
+        out.append(Run("sitl_extra_inputs", "sitl", "learnability",
+                       f"SitL, L={l0}, noise {_g(t.sitl_noise_std)}, corrector also sees {', '.join(st.extra_inputs)}",
+                       {"model": {"extra_inputs": list(st.extra_inputs)}}))
+    if st.consistent_start:
+        out.append(Run(f"solver_L{l0}_consistent", "solver", "learnability",
+                       f"solver only, L={l0}, consistent start (velocity at t0)", {"model": {"start": "consistent"}}))
+    for n in st.gns_noise:
+        if n != t.noise_std:
+            out.append(Run(f"gns_noise{_g(n)}", "gns", "fair_gns", f"GNS, noise {_g(n)}", {"train": {"noise_std": n}}))
     return out
 
 
@@ -273,9 +288,10 @@ def reference_of(run: Run, exp: S.Experiment, rows: dict):
     """The solver-only row a run is compared with: the solver at the run's own L (GNS: model.substeps)."""
     if run.kind == "solver":
         return None
-    subs = run.overrides.get("model", {}).get("substeps", exp.model.substeps) if run.kind == "sitl" \
-        else exp.model.substeps
-    return rows.get(f"solver_L{subs}")
+    model = run.overrides.get("model", {})
+    subs = model.get("substeps", exp.model.substeps) if run.kind == "sitl" else exp.model.substeps
+    uniform = run.kind == "sitl" and model.get("solver_force") == "uniform"
+    return rows.get(f"solver_L{subs}" + ("_uniform" if uniform else ""))
 
 
 def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
@@ -333,6 +349,46 @@ def frozen_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
             "label": "particles frozen at the last input frame (the test data alone)",
             "mse5": b["mse5"], "mse20": b["mse20"], "mse20_lo": b["ci_mse20"][0], "mse20_hi": b["ci_mse20"][1],
             "e_kin": b["e_kin"], "n_windows": b["n_windows"], "finite": True}
+
+
+def constant_velocity_row(profile: str, exp: S.Experiment, results, plan: list) -> dict:
+    """The floor of sense: particles moving on with their last velocity (sitl/baseline.py), no learning."""
+    from sitl import baseline, generate
+
+    base = run_experiment(profile, exp, [r for r in plan if r.group == "reference"][0])
+    b = baseline.constant_velocity(base, generate.ready(exp, results), base.eval.bootstrap)
+    return {"name": "constant_velocity", "group": "baseline", "kind": "data",
+            "label": "particles moving on at their last velocity (no learning)",
+            "mse5": b["mse5"], "mse20": b["mse20"], "mse20_lo": b["ci_mse20"][0], "mse20_hi": b["ci_mse20"][1],
+            "n_windows": b["n_windows"], "finite": True}
+
+
+POSITIVE_CONTROL_FACTOR = 10.0
+"""The positive control passes when SitL with the authors' uniform force in the loop has an MSE_20 at
+least this many times below its biased solver's (issue 39)."""
+
+
+def authors_table1(flat: list) -> list:
+    """Table 1 as its authors ran it (markdown lines): the solver alone and SitL with the uniform
+    force in the loop, GNS as before, and the positive control's factor."""
+    by = {r["name"]: r for r in flat}
+    pc = by.get("sitl_uniform")
+    rows = [r for r in flat if r["group"] == "authors"]
+    if not rows:
+        return []
+    lines = ["", "Table 1 as its authors ran it (the uniform force in the solver alone and in SitL's loop; GNS as "
+                 "before), and the positive control:", "",
+             "| run | MSE_5 | MSE_20 | MSE_Ekin (not comparable across particle counts) |", "|---|---|---|---|"]
+    for r in [by[n] for n in ("gns",) if n in by] + rows:
+        lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}] | "
+                     f"{_f(r.get('e_kin'))} |")
+    if pc is not None and pc.get("ratio_mse20"):
+        factor = 1.0 / pc["ratio_mse20"]
+        ok = factor >= POSITIVE_CONTROL_FACTOR and pc["finite"]
+        lines += ["", f"Positive control: SitL's MSE_20 is {_f(factor)}x below its biased solver's "
+                      f"(paired interval of the ratio [{_f(pc['ratio_lo'])}, {_f(pc['ratio_hi'])}]): "
+                      f"{'passes' if ok else 'FAILS'} (needs >= {POSITIVE_CONTROL_FACTOR:g}x)."]
+    return lines
 
 
 def diverged_verdict(finite: bool, ref_finite: bool, blown: bool = False, ref_blown: bool = False) -> dict:
@@ -398,25 +454,41 @@ def _other_work(cores) -> str:
     return "" if cores is None else f", beside {cores:.2g} cores of other work"
 
 
-def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
+def sigma_a(results) -> float:
+    """The dataset's acceleration scale sigma_a (the rms of metadata.json's per-axis acc_std, per-frame
+    units): a training noise is stated against it, since the same noise_std is a different regime
+    at another resolution (cpu: 1e-5 is about 0.1 sigma_a; at the paper's dx about 7 sigma_a)."""
+    meta = json.loads((S.data_dir(results) / "metadata.json").read_text())
+    return math.sqrt(sum(x * x for x in meta["acc_std"]) / len(meta["acc_std"]))
+
+
+def _noise_cell(noise, sig) -> str:
+    if noise is None:
+        return ""
+    return _f(noise) if not sig else f"{_f(noise)} ({noise / sig:.2g} σ_a)"
+
+
+def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: float = None) -> str:
     d = exp.data
     lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
              f"{d.dt * d.write_every:g}, W = {d.write_every})", "",
              "MSE_20: mean over the test windows of every seed [95 % bootstrap interval over the windows]; "
              "vs solver: MSE_20 / the solver alone's at the same L on the same windows [95 % paired interval]. "
              "Diverged: a rollout that went non-finite, or stayed finite but blew up (MSE_Ekin above the frozen "
-             "particles', i.e. a kinetic energy further from the truth than no motion at all; marked *).", "",
+             "particles', i.e. a kinetic energy further from the truth than no motion at all; marked *)."
+             + (f" Training noise also in units of the dataset's σ_a = {sig:.3g} (its acceleration scale)." if sig else ""),
+             "",
              "| run | M | noise | training steps (wall s) | MSE_5 | MSE_20 | MSE_Ekin | vs solver | |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in flat:
-        if r["group"] == "authors_force":
+        if r["group"] in ("authors_force", "authors"):
             continue
         tr = _train_cell(r)
         d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
         vs = "" if r.get("vs") is None else \
             f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
-        lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_f(r.get('noise_std'))} | {tr} | {_f(r['mse5'])} | {mse20} | "
+        lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} |")
     if budget:
         c = budget["cost"]
@@ -427,6 +499,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict) -> str:
                       f"{c['sitl']['s_per_window']:.3g} s / validation window, GNS {c['gns']['s_per_step']:.3g} s / "
                       f"step and {c['gns']['s_per_window']:.3g} s / window"
                       f"{_other_work(budget.get('other_load'))}."]
+    lines += authors_table1(flat)
     af = [r for r in flat if r["group"] == "authors_force"]
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",
@@ -476,7 +549,9 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
     for ax in (ax1, ax2):
         for r in flat:
             if r["group"] == "baseline":
-                ax.axhline(r["mse20"], color="0.4", ls=":", lw=1, label="particles frozen (data alone)")
+                frozen = r["name"] == "frozen"
+                ax.axhline(r["mse20"], color="0.4", ls=":" if frozen else "-.", lw=1,
+                           label="particles frozen (data alone)" if frozen else "constant velocity (no learning)")
     ax1.set_xscale("log")
     ax1.set_yscale("log")
     ax1.set(xlabel=f"SitL training noise std (0 plotted at {floor:g})", ylabel="test MSE$_{20}$",
@@ -503,9 +578,10 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
             elif r.get("blew_up"):
                 ax2.annotate("blew up (MSE_Ekin above frozen)", (r["M"], r["mse20"]), textcoords="offset points",
                              xytext=(-4, 6), ha="right", fontsize=7)
-    for m, labs in diverged.items():  # one label per M, naming every run that diverged there
-        ax2.annotate("diverged: " + ", ".join(labs), (m, top), textcoords="offset points", xytext=(-4, -12),
-                     ha="right", fontsize=7)
+    if diverged:  # one line per M inside the axes (x markers at the top), naming every run that diverged there
+        ax2.text(0.02, 0.02, "\n".join(f"diverged at M = {_g(m)}: {', '.join(labs)}" for m, labs in sorted(diverged.items())),
+                 transform=ax2.transAxes, fontsize=7, va="bottom", ha="left",
+                 bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none"})
     ax2.set_xscale("log")
     ax2.set_yscale("log")
     ax2.set(xlabel="temporal coarsening M (fine steps per substep; L = W / M substeps)",
@@ -558,19 +634,24 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
                 rows[r.name] = row
     rows = {r.name: rows[r.name] for r in plan if r.name in rows}  # the study's order
     frozen = frozen_row(profile, exp, results, plan)
-    flat = table(exp, rows, frozen["e_kin"]) + [frozen]
+    flat = table(exp, rows, frozen["e_kin"]) + [frozen, constant_velocity_row(profile, exp, results, plan)]
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_csv(flat, out / "study.csv")
-    md = markdown(exp, flat, profile, budget)
+    md = markdown(exp, flat, profile, budget, sigma_a(results))
     (out / "study.md").write_text(md)
     d = exp.data
     plot(exp, flat, out / "study.png", f"SitL study, RPF 2D, {profile}: {d.n_particles} particles, "
                                        f"W = {d.write_every}; mean over test windows, 95 % bootstrap intervals")
     (out / "study.json").write_text(json.dumps({"profile": profile, "runs": [r for r in flat],
                                                 "budget": budget}, indent=2, default=str) + "\n")
+    from sitl import plot_curves
+
+    solvers = {n: r for n, r in rows.items() if r["run"].kind == "solver" and "metrics" in r
+               and n in (f"solver_L{exp.model.substeps}", f"solver_L{exp.model.substeps}_uniform")}
+    plot_curves.from_study(results, rows, solvers, f"SitL study, {profile}: learning curves")
     print(md, flush=True)
-    print(f"study: {len(flat)} rows -> {out / 'study.csv'}, study.md, study.png", flush=True)
+    print(f"study: {len(flat)} rows -> {out / 'study.csv'}, study.md, study.png, curves.png", flush=True)
     return flat
 
 

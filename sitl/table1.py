@@ -85,8 +85,8 @@ def comparisons(measured: dict, n_boot: int) -> list:
 
 def ordering(measured: dict, comps: list) -> str:
     """Whether the paper's ordering (SitL below GNS below solver only) holds per metric, decided by
-    the paired intervals: 'holds' when both steps are significant, 'reversed' when one step is
-    significantly the other way, else 'undecided'."""
+    the paired intervals: 'holds' when both steps are significantly lower, 'does not hold' when one
+    is significantly the other way or equal within the margin (stats.EQUAL), else 'undecided'."""
     if not all(m in measured for m in S.MODELS):
         return "not all three models evaluated"
     out = []
@@ -94,7 +94,7 @@ def ordering(measured: dict, comps: list) -> str:
         v = {(c["a"], c["b"]): c["verdict"] for c in comps if c["metric"] == label}
         steps = [v.get(("sitl", "gns")), v.get(("gns", "solver"))]
         word = ("holds" if all(s == "lower" for s in steps) else
-                "does not hold" if any(s == "higher" for s in steps) else "undecided")
+                "does not hold" if any(s in ("higher", stats.EQUAL) for s in steps) else "undecided")
         out.append(f"{label}: {word} (SitL vs GNS {steps[0]}, GNS vs solver {steps[1]})")
     return "; ".join(out)
 

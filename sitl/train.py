@@ -4,7 +4,7 @@ checkpoint by the 20-step validation MSE). Pushforward (train.pushforward_*, bey
 passed to LagrangeBench's Trainer as its own schedule.
 
 Checkpoints go to results/<profile>/sitl/ckp/<model>/ (LagrangeBench's layout: the latest
-checkpoint there, the best in best/). A killed run continues from its latest checkpoint (written
+checkpoint there, the best in best/), with the learning curve (curve.jsonl, sitl/curve.py). A killed run continues from its latest checkpoint (written
 every train.eval_steps); train.json records the fingerprint (config + code + dataset) and marks a
 finished run, so a finished training of the same inputs is not repeated. "solver" has no weights
 and is never trained.
@@ -19,6 +19,7 @@ from sitl import common as C  # first: it sets up LagrangeBench
 import jax
 from lagrangebench import Trainer
 
+from sitl import curve
 from sitl import generate
 from sitl import integrity
 from sitl import model as M
@@ -27,6 +28,10 @@ from lab import runs
 from lab.cli import profile_main
 from lab.deliver import note_input
 from lab.lock import folder_lock
+
+
+CURVE = "curve.jsonl"
+"""The learning curve beside a checkpoint (sitl/curve.py)."""
 
 
 def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
@@ -46,7 +51,8 @@ def trainer_configs(exp: S.Experiment, run_name: str, kind: str):
                   "out_type": "none"},
         "infer": {"batch_size": 1},
     }
-    cfg_logging = {"log_steps": t.log_steps, "eval_steps": t.eval_steps, "wandb": False, "run_name": run_name}
+    # "wandb" on: sitl/curve.py stands in for it and keeps the learning curve in a file
+    cfg_logging = {"log_steps": t.log_steps, "eval_steps": t.eval_steps, "wandb": True, "run_name": run_name}
     return cfg_train, cfg_eval, cfg_logging
 
 
@@ -100,8 +106,9 @@ def _train(exp: S.Experiment, results, kind: str) -> dict:
           f"{len(data_train)} training samples, best checkpoint on {exp.train.eval_n_trajs} validation windows "
           f"of seeds {seeds}", flush=True)
     t0 = time.perf_counter()
-    params, state, _ = trainer.train(step_max=exp.train.step_max, store_ckp=str(ckp),
-                                     load_ckp=str(ckp) if resume else None)
+    with curve.recording(ckp / CURVE, step0):
+        params, state, _ = trainer.train(step_max=exp.train.step_max, store_ckp=str(ckp),
+                                         load_ckp=str(ckp) if resume else None)
     jax.block_until_ready(params)
     wall = time.perf_counter() - t0
     n_over = M.overflowed(state)
@@ -118,7 +125,7 @@ def _train(exp: S.Experiment, results, kind: str) -> dict:
                                "probs": list(exp.train.pushforward_probs)},
                   valid_seeds=seeds, train_samples=len(data_train),
                   s_per_step=wall / max(1, exp.train.step_max - step0),
-                  files=integrity.digests(ckp, checkpoint_files()))
+                  curve=CURVE, files=integrity.digests(ckp, checkpoint_files()))
     note_input(*(ckp / n for n in record.get("files", {})))
     side.write_text(json.dumps(record, indent=2) + "\n")
     print(f"train {kind}: done in {wall:.0f} s ({record['s_per_step']:.3f} s/step); best val MSE_20 "

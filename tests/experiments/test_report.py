@@ -170,7 +170,8 @@ def test_a_target_without_outputs_has_no_numbers(smoke):
 
 # -- make all ----------------------------------------------------------------------------------------
 SCRIPTS = [("fig1", "gradcheck/run.py"), ("fig2", "inverse/run.py"), ("fig4", "experiments/tgv2d/plot_fig4.py"),
-           ("fig5", "experiments/tgv2d/plot_fig5.py"), ("fig6", "--fig fig6"), ("fig7", "--fig fig7"),
+           ("fig5", "experiments/tgv2d/plot_fig5.py"), ("fig6", "experiments/ldc2d/plot_fig6.py"),
+           ("fig7", "experiments/ldc2d/plot_fig7.py"),
            ("fig8", "experiments/dambreak2d/plot_fig8.py"), ("fig9", "experiments/tgv3d/plot_fig9.py"),
            ("fig10", "experiments/thermal/plot_fig10.py"), ("table1", "sitl/table1.py"), ("fig3", "sitl/plot_fig3.py"),
            ("stability", "experiments/stability/run.py"), ("accuracy", "experiments/accuracy/atlas.py"),
@@ -209,13 +210,21 @@ def test_plan_total_is_the_sum_of_its_rows(smoke):
     rows = plan.plan_rows("smoke", smoke, paper.ALL_TARGETS)
     assert all(sec is not None and sec > 0 for _, _, sec, _ in rows)
     text = plan.render(rows, "smoke")
-    assert f"total" in text and fmt.duration(sum(r[2] for r in rows)) in text
+    assert "total" in text and fmt.duration(sum(r[2] for r in rows)) in text
     paper_rows = {r[0]: r for r in plan.plan_rows("paper", smoke.parent / "paper", paper.ALL_TARGETS, "cpu")}
     assert paper_rows["table1"][1] == "cpu" and paper_rows["fig9"][3].startswith("estimate")
 
 
 # -- make snapshot, make readme-tables ---------------------------------------------------------------
-def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path):
+@pytest.fixture
+def clean_tree(monkeypatch):
+    """The checkout as `make snapshot` needs it, committed (a session editing the tree would be
+    refused: tests/harness/test_snapshot_provenance.py tests that refusal)."""
+    from report import provenance
+    monkeypatch.setattr(provenance, "dirty_paths", lambda: [])
+
+
+def test_snapshot_is_small_self_contained_and_traceable(smoke, tmp_path, clean_tree):
     out = snapshot.snapshot("smoke", smoke, tmp_path / "docs" / "results" / "smoke")
     assert snapshot.size_mb(out) <= snapshot.LIMIT_MB
     assert (out / "provenance.json").exists() and (out / "fig10" / "metrics.csv").exists()
@@ -277,7 +286,7 @@ def test_benchmark_tables_go_into_the_snapshot_and_come_back_without_overwriting
     assert restore.restore_bench(snap, bench) == [] and snapshot.copy_bench(tmp_path / "none", snap) == []
 
 
-def test_snapshot_refuses_to_drop_a_target_until_restore_seeds_it_from_the_committed_one(smoke, tmp_path):
+def test_snapshot_refuses_to_drop_a_target_until_restore_seeds_it_from_the_committed_one(smoke, tmp_path, clean_tree):
     """A fresh clone (results/ without a target the committed snapshot holds) cannot wipe that target by
     `make snapshot`: it refuses naming it; `make restore` copies the snapshot's folder back (never over a
     folder run here), the report's provenance names what was restored, and the snapshot then keeps it."""
@@ -316,6 +325,45 @@ def test_readme_tables_regenerate_the_fixture_readme_unchanged(tmp_path):
     assert rc == 1
     fixed = readme_tables.regenerate(copy.read_text(), snap, readme)
     assert fixed == text
+
+
+def test_verdict_and_provenance_tables_are_the_reports_and_the_snapshots(tmp_path):
+    """The README's verdict table is the report's (Fig. 2 with both starts, Fig. 8's paper verdict apart
+    from its checks against experiments, beyond the paper), and its provenance line the snapshot's
+    commit and date, saying when the tree was dirty and what came from an earlier snapshot."""
+    snap = tmp_path / "paper"
+    shutil.copytree(FIXTURES / "snapshot" / "paper", snap)
+    prov = {"profile": "paper", "cpu": "some CPU (2 cores available)", "gpu": "none",
+            "snapshot_date": "2030-01-02 03:04 UTC", "snapshot_commit": "abcdef0123456789 (with uncommitted changes)",
+            "restored from snapshot": "fig1, fig2: from the snapshot of 9876543210fedcba (2030-01-01 00:00 UTC)"}
+    (snap / "provenance.json").write_text(json.dumps(prov))
+    text = "<!-- table:provenance -->\n<!-- /table:provenance -->\n<!-- table:verdicts -->\n<!-- /table:verdicts -->\n"
+    new = readme_tables.regenerate(text, snap, tmp_path / "README.md")
+    line = new.split("<!-- table:provenance -->\n")[1].split("\n")[0]
+    assert "commit `abcdef0` on 2030-01-02 03:04 UTC" in line and "uncommitted changes" in line
+    assert "2 of its target folders were restored from an earlier snapshot (commit `9876543`" in line
+    rows = {r.split(" | ")[0].strip("| ").split(" ")[0]: r for r in new.splitlines() if r.startswith("| ")}
+    assert "random start, as in the paper's text: differs" in rows["fig2"]
+    assert "displaced start, as in the authors' notebook: reproduced" in rows["fig2"]
+    fig8 = rows["fig8"].split(" | ")
+    assert fig8[2] == "figure only" and "Buchner (2002)" in fig8[3] and "Martin & Moyce (1952)" in fig8[3]
+    assert rows["fig7"].split(" | ")[2] == "not run" and rows["table1"].split(" | ")[2] == "differs"
+    prov.update(snapshot_commit="abcdef0123456789")
+    prov.pop("restored from snapshot")
+    (snap / "provenance.json").write_text(json.dumps(prov))
+    line = readme_tables.regenerate(text, snap, tmp_path / "README.md").split("<!-- table:provenance -->\n")[1]
+    assert "commit `abcdef0`" in line.split("\n")[0] and "uncommitted" not in line and "restored" not in line
+
+
+def test_the_readme_states_the_snapshots_commit_and_date():
+    prov = json.loads((ROOT / "docs" / "results" / "paper" / "provenance.json").read_text())
+    readme = (ROOT / "README.md").read_text()
+    glance = readme.split("## At a glance", 1)[1].split("\n## ", 1)[0]
+    line = glance.split("<!-- table:provenance -->\n", 1)[1].split("<!-- /table:provenance -->")[0]
+    assert f"`{prov['snapshot_commit'][:7]}`" in line and prov["snapshot_date"] in line
+    assert ("uncommitted changes" in line) == ("uncommitted changes" in prov["snapshot_commit"] or
+                                               bool(prov.get("dirty_tree")))
+    assert "<!-- table:verdicts -->" in glance and "<!-- table:figures -->" in glance
 
 
 def test_fig9_table_says_how_busy_the_machine_was(tmp_path):

@@ -115,6 +115,9 @@ _GRADIENT = _COMMON + textwrap.dedent(
 
 _ZERO_INIT = _COMMON + textwrap.dedent(
     """
+    import dataclasses
+    extras = tuple(sys.argv[2].split(",")) if len(sys.argv) > 2 and sys.argv[2] else ()
+    cfg = dataclasses.replace(cfg, extra_inputs=extras)
     # a batch of three different input states, as LagrangeBench's Trainer applies the model (vmapped)
     batch = []
     for seed in (3, 4, 5):
@@ -145,7 +148,9 @@ _ZERO_INIT = _COMMON + textwrap.dedent(
                                    for k in others if "linear" in k)),
         "n_others": len(others),
         "live_diff": float(np.abs(a_live - a_solver).max()), "finite": bool(np.isfinite(a_sitl).all()),
-        "batch_differs": float(np.abs(a_solver[0] - a_solver[1]).max())}))
+        "batch_differs": float(np.abs(a_solver[0] - a_solver[1]).max()),
+        # the node encoder's input width: LagrangeBench's features plus the extra inputs
+        "encoder_in": [int(v["w"].shape[0]) for k, v in sorted(p_sitl.items()) if "encoder" in k and "w" in v][0]}))
     """
 )
 
@@ -203,7 +208,7 @@ _INTERLEAVED = textwrap.dedent(
     from sitl import generate, settings as S
 
     exp = S.load("smoke", overrides={"data": {"frames": [8, 8, 15], "profile_window": 3, "seeds": 3},
-                                     "eval": {"n_rollout_steps": 5}, "fig3": {"stamps": [0, 5]},
+                                     "eval": {"n_rollout_steps": 5}, "fig3": {"stamps": [0, 5], "steps": 10},
                                      "train": {"eval_n_trajs": 1}})
     n = exp.data.n_particles
     pos = np.random.default_rng(0).uniform(0, 1, (3, 31, n, 2)).astype(np.float32)
@@ -276,11 +281,20 @@ def test_gradient_through_sitl_matches_finite_differences():
     assert out["rel"] < 1e-6, out
 
 
-def test_untrained_sitl_equals_solver_only_on_a_batch():
+_ENCODER_IN = {}
+
+
+@pytest.mark.parametrize("extras", ["", "solver_acc,substep"])
+def test_untrained_sitl_equals_solver_only_on_a_batch(extras):
     """The corrector's last layer starts at zero (model.zero_last_layer), so the untrained SitL model
     is the solver alone, on every sample of a batch, to round-off; the corrector is live (a non-zero
-    last layer changes the output) and only its last layer is zero."""
-    out = _run(_ZERO_INIT, "float32")
+    last layer changes the output) and only its last layer is zero. So also with the extra inputs
+    (model.extra_inputs: the solver's acceleration, dim 2, and the substep one-hot, L = 3), which widen
+    the node encoder's input by exactly 2 + 3."""
+    out = _run(_ZERO_INIT, "float32", extras)
+    _ENCODER_IN[extras] = out["encoder_in"]
+    if len(_ENCODER_IN) == 2:
+        assert _ENCODER_IN["solver_acc,substep"] - _ENCODER_IN[""] == 2 + 3, _ENCODER_IN
     assert out["finite"] and out["last_layer_zero"] and out["others_nonzero"] and out["n_others"] > 3, out
     assert out["batch_differs"] > 1e-3 * out["scale"], out        # three different states
     assert out["max_diff"] <= 1e-6 * out["scale"], out

@@ -79,7 +79,7 @@ def test_metadata_and_stats(tmp_path):
     the per-frame velocity of frame pair (t, t+1) is v_i + a_i (t + 1/2) and the acceleration a_i
     exactly; the expected statistics are computed from these formulas, not from the positions."""
     exp = S.load("smoke", overrides={"data": {"frames": [8, 8, 8], "profile_window": 3},
-                                     "eval": {"n_rollout_steps": 5, "n_trajs": 1}, "fig3": {"stamps": [0, 5]},
+                                     "eval": {"n_rollout_steps": 5, "n_trajs": 1}, "fig3": {"stamps": [0, 5], "steps": 5},
                                      "train": {"eval_n_trajs": 1}})
     n = exp.data.n_particles
     rng = np.random.default_rng(0)

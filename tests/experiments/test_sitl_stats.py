@@ -34,6 +34,16 @@ def test_paired_ratio_of_shared_difficulty():
     assert stats.verdict(1 / hi, 1 / lo, 50) == "higher"
 
 
+def test_an_interval_inside_the_equivalence_margin_is_equal_not_higher():
+    """The cpu study's SitL against the solver alone: 1.0002 [1.0001, 1.0003] is a difference of
+    0.02 %, below the +-1 % margin: equal, though the interval excludes 1; an interval reaching past
+    the margin on one side only keeps its direction."""
+    assert stats.verdict(1.0001, 1.0003, 50) == stats.EQUAL == "equal within +-1%"
+    assert stats.verdict(0.995, 1.004, 50) == stats.EQUAL
+    assert stats.verdict(1.001, 1.02, 50) == "higher" and stats.verdict(0.98, 0.999, 50) == "lower"
+    assert stats.verdict(0.98, 1.02, 50) == "undecided"
+
+
 def test_no_verdict_from_few_or_diverged_windows():
     assert stats.verdict(0.5, 0.6, stats.MIN_WINDOWS - 1) == "undecided"
     assert stats.verdict(0.9, 1.1, 100) == "undecided"

@@ -58,7 +58,9 @@ def study(tmp_path_factory):
 def test_every_run_is_made_and_tabled(study):
     results, rows, _, _ = study
     assert set(rows) == {"solver_L3", "gns", "sitl", "solver_L1", "sitl_L1", "sitl_L1_pushforward", "gns_equal_cost",
-                         "sitl_noise0.0003", "authors_force_per_particle", "authors_force_uniform", "frozen"}, sorted(rows)
+                         "sitl_noise0.0003", "authors_force_per_particle", "authors_force_uniform", "frozen",
+                         "solver_L3_uniform", "sitl_uniform", "solver_L3_consistent",
+                         "constant_velocity"}, sorted(rows)
     out = results / "sitl_study"
     assert (out / "study.png").stat().st_size > 10_000
     md = (out / "study.md").read_text()
@@ -139,6 +141,50 @@ def test_authors_force(study):
     # the uniform force pushes half of the fluid against its flow: far off in kinetic energy
     assert float(uni["e_kin"]) > 100 * float(per["e_kin"]), (uni, per)
     assert float(uni["mse20"]) > 10 * float(per["mse20"])
+
+
+def test_table1_as_its_authors_ran_it(study):
+    """The uniform force in the loop: the solver-alone row is the authors'-force evaluation's own
+    number (the same module, `model.solver_force: uniform`, on the same window), SitL with it is
+    compared with that biased solver, and the table states the positive control's factor."""
+    results, rows, _, _ = study
+    uni, sitl = rows["solver_L3_uniform"], rows["sitl_uniform"]
+    assert float(uni["mse20"]) == pytest.approx(float(rows["authors_force_uniform"]["mse20"]), rel=1e-4)
+    assert float(uni["mse20"]) > 10 * float(rows["solver_L3"]["mse20"])      # the bias is there to learn
+    assert sitl["vs"] == "solver_L3_uniform"
+    md = (results / "sitl_study" / "study.md").read_text()
+    factor = float(uni["mse20"]) / float(sitl["mse20"])
+    assert "Table 1 as its authors ran it" in md and f"Positive control: SitL's MSE_20 is {factor:.3g}x" in md, md
+    # the consistent start changes only the first velocity: the same solver, a different number
+    assert float(rows["solver_L3_consistent"]["mse20"]) != float(rows["solver_L3"]["mse20"])
+    # a floor of sense: the solver beats particles moving on at their last velocity
+    assert float(rows["constant_velocity"]["mse20"]) > float(rows["solver_L3"]["mse20"])
+
+
+def test_every_training_keeps_its_learning_curve(study):
+    """curve.jsonl beside each checkpoint: the loss at step 0 and every log step, and each validation's
+    MSE_5 <= MSE_20 (per-step MSE grows along a rollout) at every eval step; the last validation's
+    MSE_20 is the checkpoint's own (LagrangeBench's metadata_ckp.json)."""
+    from sitl import curve
+
+    results = study[0]
+    exp = S.load("smoke", overrides=S.load("smoke").study.overrides)
+    t = exp.train
+    for name, kind in (("sitl", "sitl"), ("gns", "gns"), ("sitl_uniform", "sitl")):
+        ckp = S.ckpt_dir(results / "sitl_study" / "runs" / name, kind)
+        c = curve.read(ckp / "curve.jsonl")
+        assert [s for s, _ in c["loss"]] == list(range(0, t.step_max + 1, t.log_steps)), (name, c)
+        assert [s for s, _, _ in c["val"]] == list(range(t.eval_steps, t.step_max + 1, t.eval_steps)), (name, c)
+        assert all(0 < m5 <= m20 for _, m5, m20 in c["val"]), (name, c)
+        last = json.loads((ckp / "metadata_ckp.json").read_text())
+        assert c["val"][-1][2] == pytest.approx(last["loss"], rel=1e-6), (name, c, last)
+    # plotted: one figure of every trained run's curves, and a row per run with its last validation
+    assert (results / "sitl_study" / "curves.png").stat().st_size > 10_000
+    with (results / "sitl_study" / "curves.csv").open() as f:
+        table = {r["run"]: r for r in csv.DictReader(f)}
+    assert {"sitl", "gns", "sitl_uniform"} <= set(table), sorted(table)
+    c = curve.read(S.ckpt_dir(results / "sitl_study" / "runs" / "sitl", "sitl") / "curve.jsonl")
+    assert float(table["sitl"]["last_val_mse20"]) == pytest.approx(c["val"][-1][2])
 
 
 def test_second_call_repeats_nothing(study):
@@ -389,3 +435,25 @@ def test_divergence_names_the_list_that_overflowed(study):
     out = proc.stdout
     assert "normal finite" in out, out
     assert "squeezed 0.5: in-model list overflow at 0" in out, out
+
+
+def test_cpu_study_plans_the_issue_39_runs_against_the_right_solver():
+    """The cpu profile's plan (no training here): the positive control and the authors' solver with
+    the uniform force in the loop, the extra-input corrector and the consistent start, GNS at two more
+    noise levels; each SitL / GNS run compared with the solver alone that shares its in-loop force."""
+    from sitl import study
+
+    exp = S.load("cpu")
+    plan = {r.name: r for r in study.runs(exp)}
+    assert plan["sitl_uniform"].overrides == plan["solver_L3_uniform"].overrides == {"model": {"solver_force": "uniform"}}
+    assert plan["sitl_extra_inputs"].overrides == {"model": {"extra_inputs": ["solver_acc", "substep"]}}
+    assert plan["solver_L3_consistent"].overrides == {"model": {"start": "consistent"}}
+    assert {n for n in plan if n.startswith("gns_noise")} == {"gns_noise0.0003", "gns_noise0.0001"}
+    rows = {n: {"run": r} for n, r in plan.items()}
+    ref = {n: (study.reference_of(plan[n], exp, rows) or {}).get("run") for n in plan}
+    assert ref["sitl_uniform"].name == "solver_L3_uniform" and ref["sitl_extra_inputs"].name == "solver_L3"
+    assert ref["gns_noise0.0001"].name == "solver_L3" and ref["solver_L3_uniform"] is None
+    # every run's settings load (the overrides name real, valid keys)
+    for r in plan.values():
+        if r.group not in ("authors_force", "equal_cost"):
+            study.run_experiment("cpu", exp, r)

@@ -1,0 +1,74 @@
+"""`make snapshot` names the commit its files were made at: it refuses a working tree with
+uncommitted changes to tracked files, or, with --allow-dirty (DIRTY=1), marks every file of the
+snapshot as made from that tree; the README's generated provenance line says which. The git
+lookup is replaced here (this checkout's own state is never touched), and one test runs the real
+lookup on a temporary repository."""
+import json
+import subprocess
+
+import pandas as pd
+import pytest
+
+from report import build, model, provenance, readme_verdicts, snapshot
+
+
+@pytest.fixture
+def results(tmp_path):
+    """A finished smoke report with one target's table (every other target not run)."""
+    res = tmp_path / "results" / "smoke"
+    (res / "fig10").mkdir(parents=True)
+    pd.DataFrame({"T_fluid_max": [1.2], "wall_s": [3.0]}).to_csv(res / "fig10" / "metrics.csv", index=False)
+    build.write(model.build(res, "smoke"), res / "report")
+    return res
+
+
+def test_a_dirty_tree_is_refused_naming_the_changed_files(results, tmp_path, monkeypatch):
+    monkeypatch.setattr(provenance, "dirty_paths", lambda: ["sph/step.py"])
+    out = tmp_path / "docs" / "results" / "smoke"
+    with pytest.raises(snapshot.DirtyTree, match=r"uncommitted changes \(sph/step.py\).*DIRTY=1"):
+        snapshot.snapshot("smoke", results, out)
+    assert not out.exists()  # nothing written
+    assert snapshot.main(["--profile", "smoke", "--results", str(results), "--out", str(out)]) == 2
+
+
+def test_allow_dirty_marks_every_file_and_the_readme_line_says_so(results, tmp_path, monkeypatch):
+    monkeypatch.setattr(provenance, "dirty_paths", lambda: ["sph/step.py"])
+    out = snapshot.snapshot("smoke", results, tmp_path / "docs" / "results" / "smoke", allow_dirty=True)
+    prov = json.loads((out / provenance.FILE).read_text())
+    assert prov["dirty_tree"] is True and prov["dirty_paths"] == ["sph/step.py"]
+    files = {str(f.relative_to(out)) for f in out.rglob("*") if f.is_file()}
+    assert files <= set(prov["dirty_files"]), files - set(prov["dirty_files"])
+    assert prov["snapshot_commit"].endswith(provenance.DIRTY)
+    line = readme_verdicts.provenance(out)[0]
+    assert "uncommitted changes" in line and prov["snapshot_commit"][:7] in line
+    # the report shows the marks (the file list condensed to its length)
+    assert "dirty_files" in (out / "report" / "report.md").read_text()
+
+
+def test_a_clean_tree_gives_an_unmarked_snapshot_whose_commit_the_readme_states(results, tmp_path, monkeypatch):
+    monkeypatch.setattr(provenance, "dirty_paths", lambda: [])
+    monkeypatch.setattr(provenance, "_git", lambda *a: "0123456789abcdef" if a[0] == "rev-parse" else "")
+    out = snapshot.snapshot("smoke", results, tmp_path / "docs" / "results" / "smoke")
+    prov = json.loads((out / provenance.FILE).read_text())
+    assert prov["snapshot_commit"] == "0123456789abcdef" and "dirty_tree" not in prov
+    line = readme_verdicts.provenance(out)[0]
+    assert "commit `0123456`" in line and prov["snapshot_date"] in line and "uncommitted" not in line
+
+
+def test_dirty_paths_reads_git_status_of_tracked_files(tmp_path, monkeypatch):
+    repo = tmp_path / "repo"
+    repo.mkdir()
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True)
+
+    git("init", "-q")
+    (repo / "a.txt").write_text("1\n")
+    git("add", "a.txt")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "a")
+    monkeypatch.setattr(provenance, "ROOT", repo)
+    assert provenance.dirty_paths() == [] and not provenance.commit().endswith(provenance.DIRTY)
+    (repo / "untracked.txt").write_text("x\n")  # untracked files are not the commit's and not a change
+    assert provenance.dirty_paths() == []
+    (repo / "a.txt").write_text("2\n")
+    assert provenance.dirty_paths() == ["a.txt"] and provenance.commit().endswith(provenance.DIRTY)
