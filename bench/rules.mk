@@ -2,7 +2,7 @@
 # docstrings of bench/bench_scaling.py, bench/bench_peer.py, bench/bench_neighbors.py, bench/bench_speed.py;
 # bench/bench_ab.py and bench/bench_step_profile.py are run by hand). Included by the top-level Makefile,
 # which defines PY and VENV. Always re-run (timings, not products).
-.PHONY: scaling bench-peer bench-neighbors bench-speed
+.PHONY: scaling bench-peer bench-neighbors bench-speed bench-devices
 
 scaling: | $(VENV)
 	nice $(PY) bench/bench_scaling.py --out results/bench
@@ -22,3 +22,9 @@ bench-neighbors: | $(VENV)
 # time per step and peak memory of the TGV, 2D and 3D, SPH / TVF / Riemann (the README's Speed table)
 bench-speed: | $(VENV)
 	nice $(PY) bench/bench_speed.py
+
+# the sharded step (sph.parallel, issue 40): strong and weak scaling over D devices (forced host devices
+# on a CPU: they share its cores), memory per device, halo particles and exchange bytes per step
+DEVICES_LIST ?= 1 2 4
+bench-devices: | $(VENV)
+	nice $(PY) bench/bench_devices.py --devices $(DEVICES_LIST)
