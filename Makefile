@@ -29,9 +29,9 @@ DELIVER = $(PY) -m lab.deliver $(OUTS) --from $(filter-out FORCE,$^) --
 help:
 	@echo "make all [PROFILE=smoke]        every paper target, the stability matrix, the atlas and the report (resumable, -j2 safe)"
 	@echo "make report [PROFILE=smoke]     results/<profile>/report/index.html + report.md: each figure beside the paper"
-	@echo "make snapshot [PROFILE=paper]   copy the finished report, metrics and records into docs/results/<profile>/ (<= 10 MB)"
+	@echo "make snapshot [PROFILE=paper]   copy the finished report, metrics and records into docs/results/<profile>/ (<= 10 MB; a clean tree, or DIRTY=1 to mark it)"
 	@echo "make restore [PROFILE=paper]    seed results/<profile>/ from the committed snapshot (a fresh clone keeps its targets)"
-	@echo "make readme-tables              README result tables from the committed snapshot (between <!-- table:NAME --> markers)"
+	@echo "make readme-tables              README and docs/ tables from the committed snapshot (between <!-- table:NAME --> markers)"
 	@echo "make fig1 [PROFILE=smoke]       gradient check: AD vs finite differences, TGV and cavity (paper Fig. 1)"
 	@echo "make grad-growth                gradient norm against rollout length (1 ... 1000 steps)"
 	@echo "make fig2 [PROFILE=smoke]       inverse problem: recover initial positions (paper Fig. 2)"
@@ -48,7 +48,7 @@ help:
 	@echo "make sitl-study [PROFILE=smoke] when SitL beats the solver alone: noise, coarsening, seeds, equal cost"
 	@echo "make sitl-divergence [PROFILE=smoke] where the coarse solver and SitL rollouts break, step by step"
 	@echo "make droplet [PROFILE=smoke]    surface tension: a 2D droplet at rest against Laplace's law (beyond the paper)"
-	@echo "make <folder>                   any experiments/<folder> with a study.py (the protocol) or a tgv2d-style rules.mk"
+	@echo "make <folder>                   any experiments/<folder> with a study.py (the protocol, lab.experiment): its runs and figures"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"
 	@echo "make test                       test suite"
@@ -115,7 +115,7 @@ report: | $(VENV) $(filter-out report snapshot restore readme-tables clean clean
 	$(PY) -m report.build --profile $(PROFILE) --results $(RESULTS)
 
 snapshot: | $(VENV)
-	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE) $(if $(DROP),--drop)
+	$(PY) -m report.snapshot --profile $(PROFILE) --results $(RESULTS) --out docs/results/$(PROFILE) $(if $(DROP),--drop) $(if $(DIRTY),--allow-dirty)
 
 restore: | $(VENV)
 	$(PY) -m report.restore --profile $(PROFILE)
@@ -123,24 +123,54 @@ restore: | $(VENV)
 readme-tables: | $(VENV)
 	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE)
 
-include $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk)
+# the folders of the protocol (lab.experiment): every experiments/*/study.py, or those given (a copy elsewhere,
+# PROTOCOL_DIRS=/tmp/my_study); each folder's rules.mk, where it has one, says what is its own (below)
+PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py))
+include $(sort $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk \
+                          $(addsuffix /rules.mk,$(PROTOCOL_DIRS))))
 
 # --- experiment folders of the protocol (lab.experiment): config.yaml + study.py + plot_<name>.py
 # One rule set for every such folder, whatever its name (a copy is `make <copy>`): the run step calls the
 # harness, whose cache re-runs exactly what changed, and stamps the current runs; each plot_<name>.py makes
-# <results>/<folder>/<name>.{png,pdf} through $(DELIVER), re-plotting only when the runs or the script change.
-PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py))
+# <name>.{png,pdf} through $(DELIVER), re-plotting only when the runs, the script or the folder's analysis.py
+# change. What a folder's
+# rules.mk may say of its plot <name> (d: the folder as PROTOCOL_DIRS lists it, e.g. experiments/tgv2d):
+#   FIGDIR.<d>.<name>  the figure's folder (default $(RESULTS)/<folder name>), e.g. a paper figure's $(RESULTS)/fig5
+#   EXTRA.<d>.<name>   other files the plot script writes there (e.g. metrics.csv, a copy of the table)
+#   GIF.<d>.<name>     an animation the plot script writes with --gif (plot_main's `gif`; lab.animate)
+#   DEPS.<d>.<name>    other inputs of the figure (e.g. a reference data file)
+#   GROUP.<d>.<name>   the group of runs the figure shows, one of GROUPS.<d> (the groups of the folder's runs,
+#                      lab.experiment --group): each group has its own run step and stamp <group>_runs.done,
+#                      so making one figure runs only its runs (default: every run, runs.done)
+protocol_figdir = $(or $(FIGDIR.$(1).$(2)),$(RESULTS)/$(notdir $(1)))
+protocol_outs = $(addprefix $(call protocol_figdir,$(1),$(2))/,$(2).png $(2).pdf $(EXTRA.$(1).$(2)))
+protocol_stamp = $(RESULTS)/$(notdir $(1))/$(if $(GROUP.$(1).$(2)),$(GROUP.$(1).$(2))_)runs.done
+define newline
+
+
+endef
 define protocol_rules
 $(RESULTS)/$(notdir $(1))/runs.done: FORCE | $(VENV)
 	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS)
-$(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p)))))
+$(foreach g,$(GROUPS.$(1)),$(call protocol_group,$(1),$(g))$(newline))
+$(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p))))$(newline))
 .PHONY: $(notdir $(1))
-$(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(RESULTS)/$(notdir $(1))/$(patsubst plot_%.py,%,$(notdir $(p))).png)
+$(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_figdir,$(1),$(patsubst plot_%.py,%,$(notdir $(p))))/$(patsubst plot_%.py,%,$(notdir $(p))).png $(GIF.$(1).$(patsubst plot_%.py,%,$(notdir $(p)))))
+endef
+define protocol_group
+$(RESULTS)/$(notdir $(1))/$(2)_runs.done: FORCE | $(VENV)
+	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --group $(2) --profile $$(PROFILE) --results $$(RESULTS)
 endef
 define protocol_plot
-$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf: OUTS := $(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf
-$(RESULTS)/$(notdir $(1))/$(3).png $(RESULTS)/$(notdir $(1))/$(3).pdf &: $(RESULTS)/$(notdir $(1))/runs.done $(2) lab/figures.py FORCE | $(VENV)
-	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS)
+$(call protocol_outs,$(1),$(3)): OUTS := $(call protocol_outs,$(1),$(3))
+$(call protocol_outs,$(1),$(3)) &: $(call protocol_stamp,$(1),$(3)) $(2) $(wildcard $(1)/analysis.py) $(DEPS.$(1).$(3)) lab/figures.py FORCE | $(VENV)
+	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS) --out $(call protocol_figdir,$(1),$(3))
+$(if $(GIF.$(1).$(3)),$(call protocol_gif,$(1),$(2),$(GIF.$(1).$(3)),$(call protocol_stamp,$(1),$(3))))
+endef
+define protocol_gif
+$(3): OUTS := $(3)
+$(3): $(4) $(2) lab/animate.py FORCE | $(VENV)
+	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS) --gif $$@
 endef
 $(foreach d,$(PROTOCOL_DIRS),$(eval $(call protocol_rules,$(d))))
 

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from lab.figures import save_figure  # noqa: E402
@@ -46,9 +47,9 @@ def _state_panel(ax, data, exp, case, start, off, norm):
     ax.scatter(last[:, 0], last[:, 1], s=18, marker="x", color="tab:orange", lw=0.8, zorder=4,
                label="final of last iterate")
     pad = exp.layers * exp.dx
-    ax.set(xlim=(-pad, exp.box_size + pad), ylim=(-pad, exp.box_size + pad), aspect="equal",
-           title=f"case {case}, {start} start ({exp.path_optimizer})")
-    ax.tick_params(labelsize=7)
+    ax.set(xlim=(-pad, exp.box_size + pad), ylim=(-pad, exp.box_size + pad), aspect="equal", xlabel="x", ylabel="y")
+    ax.set_title(f"case {case}, {start} start ({exp.path_optimizer})", fontsize=10)
+    ax.tick_params(labelsize=8)
 
 
 def plot(exp: "S.Experiment", results) -> Path:
@@ -60,8 +61,10 @@ def plot(exp: "S.Experiment", results) -> Path:
     off = cube.offset(exp.dx, exp.layers)
     norm = colors.Normalize(0, exp.iterations)
     n_cases, n_starts = len(exp.cases), len(exp.starts)
-    fig, axes = plt.subplots(n_cases, n_starts + 1, figsize=(3.3 * (n_starts + 1) + 0.8, 3.2 * n_cases),
-                             constrained_layout=True, squeeze=False)
+    # 9.6 in wide: at the README's ~800 px a 9-point label is ~10 px tall; every legend in one row
+    # of its own below the panels, so that no legend hides a curve or a particle
+    fig, axes = plt.subplots(n_cases, n_starts + 1, figsize=(9.6, 3.1 * n_cases + 1.1), layout="constrained",
+                             squeeze=False)
     targets = dict(zip([c.name for c in exp.cases], exp.rmse_targets))
     for i, case in enumerate(exp.cases):
         for j, start in enumerate(exp.starts):
@@ -72,16 +75,27 @@ def plot(exp: "S.Experiment", results) -> Path:
                 g = table[(table["case"] == case.name) & (table["optimizer"] == opt.name)
                           & (table["start"] == start.name)].sort_values("iteration")
                 ax.plot(g["iteration"], g["loss"], color=f"C{m}", ls=STYLES[j % len(STYLES)], marker=".", ms=3,
-                        lw=1.2, label=f"{opt.name} (lr {opt.learning_rate:g}), {start.name}")
+                        lw=1.2)
+        title = f"case {case.name}: loss"
         if case.name in targets:
             ax.axhline(targets[case.name] ** 2, color="k", lw=0.8, ls=":",
-                       label=f"paper: RMSE {targets[case.name]:g} after {exp.iterations} steps")
-        ax.set(yscale="log", xlabel="optimizer iteration", ylabel="loss (MSE of final positions)",
-               title=f"case {case.name}: loss")
+                       label=f"authors' notebook: RMSE after {exp.iterations} steps (squared)")
+            title += f"\n(authors' notebook: RMSE {targets[case.name]:g})"
+        ax.set(yscale="log", xlabel="optimizer iteration", ylabel="loss (MSE of final positions)")
+        ax.set_title(title, fontsize=10)
+        ax.tick_params(labelsize=8)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
-    axes[0, 0].legend(fontsize=6, loc="upper right")
+    # one legend for every panel, in columns: the states' markers; the optimizers (colour); the
+    # starts (dash) and the notebook's value
+    handles = axes[0, 0].get_legend_handles_labels()[0]
+    handles += [Line2D([], [], color=f"C{m}", marker=".", ms=3, lw=1.2, label=f"{opt.name} (lr {opt.learning_rate:g})")
+                for m, opt in enumerate(exp.optimizers)]
+    handles += [Line2D([], [], color="0.4", ls=STYLES[j % len(STYLES)], lw=1.2, label=f"{start.name} start")
+                for j, start in enumerate(exp.starts)]
+    handles += [h for h, lab in zip(*axes[0, -1].get_legend_handles_labels()) if lab.startswith("authors'")]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=8, frameon=False,
+               columnspacing=2.0, handlelength=2.5)
     fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cm.viridis), ax=axes[:, n_starts - 1], shrink=0.6,
                  label="iteration of the initial-state iterate")
     fig.suptitle(f"Inverse problem: recover the initial positions from the final ones "

@@ -12,10 +12,10 @@
   stamp.py         make stamps: a run step's manifest of exactly the current runs (note_current)
   deliver.py       deliverables verified on every make: re-made when their inputs or files differ
   experiment.py    the experiment-folder protocol (config.yaml + study.py + plot_<name>.py): the rest
+  protocol.py      what a study may declare besides its four names: a cached Start, its Table
   layout.py        where a study writes (results/<profile>/<name>/<method>_<tag>/) and its code key
-  study.py         a study's methods, relaxed periodic starts, run spec and sweep (TGV 2D / 3D)
-  tgv2d.py         the 2D Taylor-Green study's settings and fingerprints; tgv2d_runs.py its runs and
-                   metrics (experiments/tgv2d and the accuracy atlas's TGV sweep run them)
+  study.py         a study's methods (named solver variants) and the checks of its settings
+  cost.py          the cost of an experiment's runs from a short run of each, without running them
   lock.py, atomic.py, other_load.py   one writer per folder, atomic writes, the load beside a timing
 XLA's CPU flag is the core's (`sph.set_cpu_defaults`); the entry points (`cli.main_guard`) set it.
 

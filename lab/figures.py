@@ -5,7 +5,7 @@ its table.
     for m, res, label, style in method_lines(exp.methods, resolutions):   # a colour per method,
         ax.plot(t, y, label=f"{label}, dx = {res:g}", lw=1.4, **style)    # a dash per resolution
     png = save_figure(fig, out, "fig5")                                   # fig5.png and fig5.pdf
-    copy_metrics(metrics_path, out, n_runs, "experiments/tgv2d/run.py")
+    copy_metrics(metrics_path, out, n_runs, "python -m lab.experiment experiments/tgv2d")
 
 Only reads finished results and writes figures: number-neutral (lab.keys.NUMBER_NEUTRAL).
 """

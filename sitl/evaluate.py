@@ -61,10 +61,11 @@ def time_per_step(model, params, state, case, sample, repeats: int = 10) -> floa
 
 def per_window(metrics: dict) -> dict:
     """{metric: [value per test window]} in window order: each LagrangeBench's per-rollout mean (what
-    its `averaged_metrics` averages), e.g. MSE_20 of a window = the mean of its 20 step MSEs."""
+    its `averaged_metrics` averages), e.g. MSE_20 of a window = the mean of its 20 step MSEs; MSE_1 is
+    the first step's alone (what one corrected step does, before errors compound)."""
     order = sorted(metrics, key=lambda k: int(k.rsplit("_", 1)[-1]))
-    get = {"mse5": lambda m: m["mse5"], "mse20": lambda m: m["mse"], "e_kin": lambda m: m["e_kin"]["mse"],
-           "sinkhorn": lambda m: m["sinkhorn"]}
+    get = {"mse1": lambda m: np.asarray(m["mse"])[:1], "mse5": lambda m: m["mse5"], "mse20": lambda m: m["mse"],
+           "e_kin": lambda m: m["e_kin"]["mse"], "sinkhorn": lambda m: m["sinkhorn"]}
     return {k: [float(np.mean(np.asarray(f(metrics[r])))) for r in order] for k, f in get.items()
             if all(k != "sinkhorn" or "sinkhorn" in metrics[r] for r in order)}
 

@@ -332,6 +332,9 @@ def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
                                                n_boot)
             row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
                        verdict=stats.verdict(lo, hi, m["n_rollouts"]))
+            if "mse1" in m["per_window"] and "mse1" in ref["metrics"]["per_window"]:  # one step, before compounding
+                r1, lo1, hi1 = stats.paired_ratio(m["per_window"]["mse1"], ref["metrics"]["per_window"]["mse1"], n_boot)
+                row.update(ratio_mse1=r1, ratio_mse1_lo=lo1, ratio_mse1_hi=hi1)
             row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"], row["blew_up"],
                                         blew_up(ref["metrics"].get("e_kin"), frozen_e_kin)))
         out.append(row)
@@ -417,7 +420,7 @@ def blew_up(e_kin, frozen_e_kin) -> bool:
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
            "train_wall_s", "train_timed_from_step", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo",
            "mse20_hi", "e_kin", "sinkhorn", "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo",
-           "ratio_hi", "verdict", "shared_with_table1", "folder"]
+           "ratio_hi", "verdict", "ratio_mse1", "ratio_mse1_lo", "ratio_mse1_hi", "shared_with_table1", "folder"]
 
 
 def timed_from_step(train: dict):
@@ -462,6 +465,15 @@ def sigma_a(results) -> float:
     return math.sqrt(sum(x * x for x in meta["acc_std"]) / len(meta["acc_std"]))
 
 
+def _ratio_cell(r: dict, key: str) -> str:
+    """A paired ratio with its interval, digits enough to tell its ends apart ('' when absent)."""
+    if r.get(key) is None:
+        return ""
+    lo, hi = r.get(f"{key}_lo"), r.get(f"{key}_hi")
+    d = ratio_digits(r[key], lo, hi)
+    return f"{_f(r[key], d)} [{_f(lo, d)}, {_f(hi, d)}]"
+
+
 def _noise_cell(noise, sig) -> str:
     if noise is None:
         return ""
@@ -478,8 +490,8 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
              "particles', i.e. a kinetic energy further from the truth than no motion at all; marked *)."
              + (f" Training noise also in units of the dataset's σ_a = {sig:.3g} (its acceleration scale)." if sig else ""),
              "",
-             "| run | M | noise | training steps (wall s) | MSE_5 | MSE_20 | MSE_Ekin | vs solver | |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| run | M | noise | training steps (wall s) | MSE_5 | MSE_20 | MSE_Ekin | vs solver | | step 1 vs solver |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in flat:
         if r["group"] in ("authors_force", "authors"):
             continue
@@ -489,7 +501,8 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
             f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]"
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
-                     f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} |")
+                     f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} | "
+                     f"{_ratio_cell(r, 'ratio_mse1')} |")
     if budget:
         c = budget["cost"]
         lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps, the cost of the reference SitL's "

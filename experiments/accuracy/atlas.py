@@ -6,8 +6,10 @@ gradient check's metrics (gradcheck/: AD vs FD error against AD time). Writes, i
 results/<profile>/accuracy/:
 
   runs.csv          every run record found (one schema: lab.record.RECORD_COLUMNS + err_<name>)
-  accuracy.png/pdf  one panel per problem: error against wall time (log-log), a marker per method,
-                    the Pareto front (the runs no other run beats in both error and time) drawn
+  accuracy.png/pdf  one panel per problem in a grid of 3 columns: error against wall time
+                    (log-log), colour per method, marker shape per kernel, fill per dtype, the Pareto
+                    front (the runs no other run beats in both error and time) drawn; one shared
+                    legend below the panels
   convergence.png   per problem: error against dx with the least-squares order per method, and wall
                     time against particle count with the fitted exponent
   accuracy.md       per problem and error level the cheapest run that reaches it, and the orders;
@@ -15,8 +17,11 @@ results/<profile>/accuracy/:
                     from results/bench/grad_memory.csv when bench/bench_grad_memory.py has written it
 
     python experiments/accuracy/atlas.py --profile smoke [--results results/smoke]
+    python experiments/accuracy/atlas.py --from-runs docs/results/paper/accuracy/runs.csv [--out DIR]
+        (re-draws accuracy.png alone from a runs.csv already written: `replot`)
 """
 import json
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -130,10 +135,11 @@ SPARE_COLORS, SPARE_MARKERS = ["C1", "C4", "C5", "C6", "C7", "C8", "C9"], "DvP*X
 
 
 def family_styles(t: pd.DataFrame) -> dict:
-    """label -> matplotlib style of each run family of a problem table: colour by method, marker by
-    kernel (and smoothing length), filled for float64, open for float32; and the legend entries."""
+    """label -> matplotlib style of each run family of a problem table (or of every problem's tables
+    concatenated, for one style across the atlas's panels): colour by method, marker by kernel (and
+    smoothing length), filled for float64, open for float32."""
     styles, colors, markers = {}, dict(METHOD_COLORS), dict(KERNEL_MARKERS)
-    for label, g in t.groupby("label"):
+    for label, g in t.groupby("label", sort=False):
         r = g.iloc[0]
         method = str(r["method"])
         kernel = label[len(method):].rsplit(" ", 1)[0].strip()  # "kernel [h=..dx]" between method and dtype
@@ -147,38 +153,119 @@ def family_styles(t: pd.DataFrame) -> dict:
     return styles
 
 
-def style_legend(ax, styles: dict, extra=()):
-    """One legend of methods (colour), kernels (marker) and dtypes (filled / open)."""
+def legend_groups(styles: dict, extra=()) -> list:
+    """The legend of run families as (title, handles, labels) groups: method (colour), kernel (marker shape,
+    each shown filled and open: the shape alone carries the kernel) and precision (fill, written out
+    rather than drawn, so that no legend glyph means two things), `extra` handles (the Pareto front)
+    last with the precision."""
     from matplotlib.lines import Line2D
 
-    handles = list(extra)
     methods = {st["method"]: st["color"] for st in styles.values()}
     kernels = {st["kernel"]: st["marker"] for st in styles.values()}
-    handles += [Line2D([], [], color=c, lw=3, label=m) for m, c in methods.items()]
-    handles += [Line2D([], [], color="0.3", marker=mk, ls="none", label=k or "(no kernel)") for k, mk in kernels.items()]
     dtypes = {st["dtype"] for st in styles.values()}
-    for d, mfc in (("float64", "0.3"), ("float32", "none")):
-        if d in dtypes and len(dtypes) > 1:
-            handles.append(Line2D([], [], color="0.3", marker="o", mfc=mfc, ls="none", label=d))
-    ax.legend(handles=handles, fontsize=6)
+    colour = [Line2D([], [], color=c, lw=4, label=m) for m, c in methods.items()]
+    shape = [(Line2D([], [], color="0.3", marker=mk, ls="none", ms=6),
+              Line2D([], [], color="0.3", marker=mk, mfc="none", ls="none", ms=6)) for mk in kernels.values()]
+    shape_labels = [k or "(no kernel)" for k in kernels]
+    fill = []
+    if len(dtypes) > 1:
+        fill = [Line2D([], [], ls="none", label=f"{d}: {how} marker")
+                for d, how in (("float64", "filled"), ("float32", "open")) if d in dtypes]
+    return [("method / case (colour)", colour, [h.get_label() for h in colour]),
+            ("kernel (marker shape)", shape, shape_labels),
+            ("precision (fill)" if fill else "", fill + list(extra), [h.get_label() for h in fill + list(extra)])]
 
 
-def plot_accuracy(tables: dict, out: Path):
+def style_legend(ax, styles: dict, extra=()):
+    """One legend of methods (colour), kernels (marker) and dtypes (fill) on `ax`."""
+    from matplotlib.legend_handler import HandlerTuple
+
+    handles, labels = [], []
+    for _, h, lab in legend_groups(styles, extra):
+        handles += h
+        labels += lab
+    ax.legend(handles, labels, fontsize=6, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)})
+
+
+ATLAS_WIDTH_IN = 9.0
+"""The atlas's width in inches: at the README's ~800 px a 9-point label is ~11 px tall."""
+ATLAS_COLUMNS = 3
+LEGEND_FRONT = plt.Line2D([], [], color="k", lw=1, alpha=0.7,
+                          label="Pareto front (no run both\nfaster and more accurate)")
+
+
+def atlas_layout(n: int) -> tuple:
+    """(rows, columns) of the atlas's grid of `n` panels."""
+    cols = max(1, min(ATLAS_COLUMNS, n))
+    return -(-max(1, n) // cols), cols
+
+
+def log_ticks(ax):
+    """Tick labels of a log-log panel that do not run into each other: the decades only (minor ticks
+    unlabelled), or 1, 2, 5 x each decade where an axis spans less than about a decade and a half."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator, NullFormatter
+
+    for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        axis.set_minor_formatter(NullFormatter())
+        if lo > 0 and hi > 0 and np.log10(hi / lo) < 1.5:
+            axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(np.inf, np.inf)))
+
+
+def plot_accuracy(tables: dict, out: Path, formats=("png", "pdf")) -> Path:
+    """accuracy.png (and the other `formats`): the atlas's figure (atlas_figure)."""
+    fig, _ = atlas_figure(tables)
+    return save_figure(fig, out, "accuracy", dpi=150, formats=formats)
+
+
+def atlas_figure(tables: dict):
+    """(figure, panels): one log-log panel per problem with runs (error against wall time), in a grid
+    of ATLAS_COLUMNS columns, ATLAS_WIDTH_IN wide; one style per run family across the panels and one
+    shared legend in a row of its own below them (nothing drawn over the data or the Pareto front)."""
+    from matplotlib.legend_handler import HandlerTuple
+
     names = [n for n, t in tables.items() if len(t)]
-    fig, axes = plt.subplots(1, max(1, len(names)), figsize=(4.6 * max(1, len(names)), 4.0), squeeze=False,
-                             constrained_layout=True)
-    for ax, name in zip(axes[0], names):
+    rows, cols = atlas_layout(len(names))
+    styles = family_styles(pd.concat([tables[n] for n in names])) if names else {}
+    groups = legend_groups(styles, extra=[LEGEND_FRONT])
+    ncols = [2 if len(h) > 4 and j < 2 else 1 for j, (_, h, _) in enumerate(groups)]
+    legend_h = 0.6 + 0.25 * max(-(-len(h) // c) for (_, h, _), c in zip(groups, ncols))  # title + rows
+    fig = plt.figure(figsize=(ATLAS_WIDTH_IN, 2.75 * rows + legend_h), layout="constrained")
+    gs = fig.add_gridspec(rows + 1, cols, height_ratios=[2.75] * rows + [legend_h])
+    front, panels = None, []
+    for k, name in enumerate(names):
+        ax = fig.add_subplot(gs[k // cols, k % cols])
+        panels.append(ax)
         t = tables[name]
-        styles = family_styles(t)
         for label, g in t.groupby("label"):
             st = styles[label]
-            ax.loglog(g["wall_s"], g["error"], st["marker"], color=st["color"], mfc=st["mfc"], ls="none", alpha=0.8)
+            ax.loglog(g["wall_s"], g["error"], st["marker"], color=st["color"], mfc=st["mfc"], ls="none",
+                      ms=4.5, mew=0.9, alpha=0.8)
         p = pareto(t)
-        front, = ax.loglog(p["wall_s"], p["error"], "k-", lw=1, alpha=0.6, label="Pareto front")
-        ax.set(title=name, xlabel="wall time of the run [s]", ylabel=PROBLEMS[name][2])
+        front, = ax.loglog(p["wall_s"], p["error"], "k-", lw=1, alpha=0.7, zorder=3)
+        ax.set_title(name, fontsize=10)
+        ax.set_xlabel("wall time of the run [s]", fontsize=8.5)
+        what = PROBLEMS[name][2].replace(" - ", "\u00a0-\u00a0")  # no line break before "- 1"
+        ax.set_ylabel(textwrap.fill(what, 30, break_on_hyphens=False), fontsize=8.5)
+        ax.tick_params(labelsize=8)
         ax.grid(True, which="both", alpha=0.3)
-        style_legend(ax, styles, extra=[front])
-    save_figure(fig, out, "accuracy", dpi=130)
+        log_ticks(ax)
+    if not names:
+        ax = fig.add_subplot(gs[0, :])
+        ax.set(xlabel="wall time of the run [s]", ylabel="error")
+        ax.text(0.5, 0.5, "no run records found", ha="center", va="center", transform=ax.transAxes)
+    legs = gs[rows, :].subgridspec(1, 3, width_ratios=[1, 1.15, 0.95])
+    if front is None:  # no panel: no front in the legend
+        groups[2] = (groups[2][0], groups[2][1][:-1], groups[2][2][:-1])
+    for j, (title, handles, labels) in enumerate(groups):
+        lax = fig.add_subplot(legs[0, j])
+        lax.set_axis_off()
+        if handles:
+            lax.legend(handles, labels, title=title or None, loc="upper center", fontsize=8, title_fontsize=8.5,
+                       ncols=ncols[j], frameon=False, borderaxespad=0,
+                       handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)}, columnspacing=1.0,
+                       handletextpad=0.5)
+    return fig, panels
 
 
 def plot_convergence(tables: dict, out: Path) -> dict:
@@ -301,7 +388,34 @@ def build(atlas: "S.Atlas", results) -> Path:
     return out
 
 
-if __name__ == "__main__":
-    from lab.cli import experiment_main
+def replot(runs_csv, profile: str = "paper", out=None, formats=("png",)) -> Path:
+    """Re-draw accuracy.png from a runs.csv the atlas wrote (e.g. a snapshot's
+    docs/results/paper/accuracy/runs.csv), without the records or experiments behind it: the same
+    tables (problem_table) and plot as `build`. Writes into `out` (default: beside runs.csv)."""
+    runs_csv = Path(runs_csv)
+    atlas = S.load(profile)
+    runs = pd.read_csv(runs_csv)
+    tables = {name: problem_table(runs, atlas, name) for name in PROBLEMS}
+    out = Path(out) if out is not None else runs_csv.parent
+    out.mkdir(parents=True, exist_ok=True)
+    png = plot_accuracy(tables, out, formats=formats)
+    print(f"accuracy: {len(runs)} rows of {runs_csv} -> {png}")
+    return png
 
-    experiment_main(build, S.load, __doc__)
+
+if __name__ == "__main__":
+    import sys
+
+    if "--from-runs" in sys.argv:  # re-plot accuracy.png only, from an existing runs.csv
+        import argparse
+
+        ap = argparse.ArgumentParser(description=replot.__doc__)
+        ap.add_argument("--from-runs", required=True, help="a runs.csv written by the atlas")
+        ap.add_argument("--profile", default="paper", help="the atlas profile (its TGV error column)")
+        ap.add_argument("--out", default=None, help="folder for accuracy.png (default: beside runs.csv)")
+        a = ap.parse_args()
+        replot(a.from_runs, a.profile, a.out)
+    else:
+        from lab.cli import experiment_main
+
+        experiment_main(build, S.load, __doc__)

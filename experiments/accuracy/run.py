@@ -1,7 +1,7 @@
 """The TGV sweep of the accuracy-cost atlas: every method x dx x dtype x kernel of the profile, each
-(kernel, dtype) as one 2D Taylor-Green study (lab.tgv2d / tgv2d_runs, the code experiments/tgv2d
-runs too; its base profile read from experiments/tgv2d/config.yaml) with its own runs (cached,
-resumable: lab.runs), into results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
+(kernel, dtype) as experiments/tgv2d run by the harness (lab.experiment: its study.py, its config's
+base profile with this sweep's overrides) with its own runs (cached, resumable: lab.runs), into
+results/<profile>/accuracy/tgv/<kernel>_<dtype>/tgv2d/. Runs that exist are reused;
 the other problems of the atlas (cavity, dam break, heat) are not run here: atlas.py reads the run
 records their own experiments wrote.
 
@@ -9,9 +9,8 @@ records their own experiments wrote.
 """
 import time
 
-from lab import tgv2d, tgv2d_runs
-from lab.configtools import ConfigError, to_mapping
-from lab.layout import Study
+from lab.configtools import ConfigError, load_profile, to_mapping
+from lab.experiment import Experiment, load_study
 
 try:
     from . import settings as S
@@ -19,15 +18,12 @@ except ImportError:  # run as a script: its folder comes first on the import pat
     import settings as S
 
 
-STUDY = Study("tgv2d", S.HERE)
-"""The sweep's runs: a 2D Taylor-Green study named tgv2d (what the atlas gathers), keyed on this folder's code."""
-
-
-def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> tgv2d.Experiment:
-    """The 2D Taylor-Green experiment of one (kernel entry, dtype) of the sweep, validated as tgv2d's own
-    config (a kernel entry "name@<factor>" also sets numerics.h_factor)."""
+def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str, results=".") -> Experiment:
+    """The 2D Taylor-Green experiment of one (kernel entry, dtype) of the sweep, its results under
+    S.tgv_results(results, ...), validated as tgv2d's own config (a kernel entry "name@<factor>" also
+    sets numerics.h_factor)."""
     sw = atlas.tgv
-    base = tgv2d.load(S.TGV_CONFIG, sw.base_profile)
+    base = load_profile(load_study(S.TGV_FOLDER).Settings, S.TGV_FOLDER / "config.yaml", sw.base_profile)
     names = [m.name for m in base.methods]
     for i, m in enumerate(sw.methods):
         if m not in names:
@@ -39,7 +35,7 @@ def tgv_experiment(atlas: "S.Atlas", kernel: str, dtype: str) -> tgv2d.Experimen
     numerics = {"kernel": name, "dtype": dtype}
     if h_factor is not None:
         numerics["h_factor"] = h_factor
-    return tgv2d.load(S.TGV_CONFIG, sw.base_profile, overrides={
+    return Experiment(S.TGV_FOLDER, sw.base_profile, S.tgv_results(results, kernel, dtype), overrides={
         "numerics": numerics, "methods": methods, "dx": list(sw.dx),
         "t_end": sw.t_end, "frames": sw.frames, "eval_times": [sw.t_end / 2, sw.t_end]})
 
@@ -49,9 +45,9 @@ def run_sweep(atlas: "S.Atlas", results, progress: bool = True) -> int:
     n = 0
     for kernel in atlas.tgv.kernels:
         for dtype in atlas.tgv.dtypes:
-            exp = tgv_experiment(atlas, kernel, dtype)
+            exp = tgv_experiment(atlas, kernel, dtype, results)
             print(f"accuracy: TGV sweep, kernel {kernel}, {dtype}", flush=True)
-            n += len(tgv2d_runs.run_all(STUDY, exp, S.tgv_results(results, kernel, dtype), progress=progress))
+            n += len(exp.run_all(progress=progress))
     print(f"accuracy: {n} TGV runs in {time.perf_counter() - t0:.1f} s", flush=True)
     return n
 

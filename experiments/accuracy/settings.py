@@ -12,13 +12,13 @@ from sph.precision import DTYPES
 HERE = Path(__file__).resolve().parent
 NAME = HERE.name
 CONFIG = HERE / "config.yaml"
-TGV_CONFIG = HERE.parent / "tgv2d" / "config.yaml"
-"""Where the TGV sweep's base profiles are (tgv.base_profile): the 2D Taylor-Green experiment's config."""
+TGV_FOLDER = HERE.parent / "tgv2d"
+"""The experiment the TGV sweep runs (its study.py, and its config.yaml's profiles: tgv.base_profile)."""
 
 
 @dataclass(frozen=True)
 class TgvSweep:
-    """The TGV sweep: every method x dx x dtype x kernel, each a 2D Taylor-Green study (lab.tgv2d).
+    """The TGV sweep: every method x dx x dtype x kernel, each a run of experiments/tgv2d.
 
     base_profile  profile of experiments/tgv2d/config.yaml supplying material, numerics, relaxation
     kernels       kernel names (sph.kernels.KERNELS), each optionally with its own smoothing length

@@ -3,14 +3,14 @@ paper's time stamps (one panel each, fixed colour range), and a validation figur
 downstream-wall pressure history against Buchner (2002) and the square column's surge front and
 back-wall height against Martin & Moyce (1952).
 
-Reads results/<profile>/dambreak2d/*/traj.h5, series.csv and metrics.csv (evaluate.py); writes
-results/<profile>/fig8/fig8.{png,pdf}, validation.{png,pdf} and metrics.csv (a copy); with --gif PATH
-only an animation of the Fig. 8 column's pressure in the figure's colour range (lab.animate).
+Reads the current runs and metrics.csv (lab.experiment: refused, naming them, when a run is missing or
+stale; the per-frame series are analysis.py's); writes <out>/fig8.{png,pdf}, validation.{png,pdf}
+and metrics.csv (a copy; make: results/<profile>/fig8/); with --gif PATH only an animation of the
+Fig. 8 column's pressure in the figure's colour range (lab.animate).
 
-    python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--gif fig8.gif]
+    python experiments/dambreak2d/plot_fig8.py --profile smoke [--results results/smoke] [--out DIR] [--gif fig8.gif]
 """
 import shutil
-from pathlib import Path
 
 import matplotlib
 
@@ -18,29 +18,34 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
+from lab.experiment import plot_main  # noqa: E402
 from lab.figures import save_figure  # noqa: E402
 import sph  # noqa: E402
-from lab import animate, io  # noqa: E402
-try:  # noqa: E402
-    from . import evaluate as E
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import evaluate as E
-    import settings as S
 
 
-def _draw_tank(ax, exp: "S.Experiment"):
+def column_run(exp, name: str):
+    """The run of column `name`."""
+    return next(r for r in exp.runs if r.column.name == name)
+
+
+def column_series(exp, name: str):
+    """The per-frame series of column `name` (analysis.py)."""
+    run = column_run(exp, name)
+    return exp.analysis.series(exp.settings, run.column, exp.trajectory(run))[0]
+
+
+def _draw_tank(ax, s):
     """The wall layers as grey bands around the tank interior [0, L] x [0, H_tank]."""
-    t, L, H = exp.offset, exp.tank.length, exp.tank.height
+    t, L, H = s.offset, s.tank.length, s.tank.height
     for xy, w, h in (((-t, -t), L + 2 * t, t), ((-t, H), L + 2 * t, t), ((-t, 0), t, H), ((L, 0), t, H)):
         ax.add_patch(Rectangle(xy, w, h, facecolor="0.75", edgecolor="none"))
 
 
-def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
+def plot_fig8(experiment, out):
+    exp = experiment.settings
     column = exp.column(exp.pressure_column)
-    tr = io.read_trajectory(S.run_dir(results, column.name, exp.dx) / "traj.h5")
+    tr = experiment.trajectory(column_run(experiment, column.name))
     t, pos, p = tr["time"], tr["position"], tr["pressure"]
     fluid = tr["particle_type"] == sph.FLUID
     off, scale = exp.offset, exp.fluid.rho_ref * exp.g * column.height
@@ -71,12 +76,13 @@ def plot_fig8(exp: "S.Experiment", results, out: Path) -> Path:
     return out / "fig8.png"
 
 
-def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
-    metrics = pd.read_csv(S.metrics_path(results)).set_index("column")
+def plot_validation(experiment, out):
+    exp, E = experiment.settings, experiment.analysis
+    metrics = experiment.table().set_index("column")
     fig, (ax_p, ax_f, ax_h) = plt.subplots(1, 3, figsize=(15.0, 4.0), constrained_layout=True)
 
     col = exp.pressure_column
-    s = pd.read_csv(S.run_dir(results, col, exp.dx) / "series.csv")
+    s = column_series(experiment, col)
     t_ref, p_ref = E.load_ref(E.BUCHNER)
     ax_p.plot(t_ref, p_ref, "ko", ms=3, label="Buchner (2002), experiment")
     ax_p.plot(s["t"], s["p_sensor"], "-", color="tab:blue", lw=0.6, alpha=0.6,
@@ -98,7 +104,7 @@ def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
     ax_p.legend(fontsize=8)
 
     col = exp.front_column
-    s = pd.read_csv(S.run_dir(results, col, exp.dx) / "series.csv")
+    s = column_series(experiment, col)
     tf, xf = E.load_ref(E.MM_FRONT)
     th, yh = E.load_ref(E.MM_HEIGHT)
     ax_f.plot(tf, xf, "ko", ms=4, label="Martin & Moyce (1952)")
@@ -121,38 +127,21 @@ def plot_validation(exp: "S.Experiment", results, out: Path) -> Path:
     return out / "validation.png"
 
 
-def animate_fig8(exp: "S.Experiment", results, path) -> Path:
-    """An animation of the Fig. 8 column's pressure, in the figure's range of p / (rho g H)."""
+def fig8_gif(experiment):
+    """The Fig. 8 column's run and its animation's colour range of p / (rho g H) (plot_main's --gif)."""
+    exp = experiment.settings
     column = exp.column(exp.pressure_column)
     scale = exp.fluid.rho_ref * exp.g * column.height
     lo, hi = exp.pressure_range
-    return animate.render(S.run_dir(results, column.name, exp.dx) / "traj.h5", path, field="pressure",
-                          vmin=lo * scale, vmax=hi * scale).path
+    return column_run(experiment, column.name), {"field": "pressure", "vmin": lo * scale, "vmax": hi * scale}
 
 
-def plot(exp: "S.Experiment", results) -> Path:
-    out = Path(results) / "fig8"
-    out.mkdir(parents=True, exist_ok=True)
-    f8 = plot_fig8(exp, results, out)
-    val = plot_validation(exp, results, out)
-    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
-    print(f"fig8 -> {f8}, {val}, {out / 'metrics.csv'}")
+def plot(experiment, out):
+    f8 = plot_fig8(experiment, out)
+    plot_validation(experiment, out)
+    shutil.copyfile(experiment.metrics_path, out / "metrics.csv")
     return f8
 
 
-def options(ap):
-    ap.add_argument("--gif", default=None, help="write only an animation of the Fig. 8 run to this file")
-
-
-def main(args):
-    exp, results = S.load(args.profile), args.results
-    if args.gif:
-        animate_fig8(exp, results, args.gif)
-    else:
-        plot(exp, results)
-
-
 if __name__ == "__main__":
-    from lab.cli import profile_main
-
-    profile_main(main, __doc__, options)
+    plot_main(plot, __file__, __doc__, gif=fig8_gif)

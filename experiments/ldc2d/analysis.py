@@ -17,7 +17,8 @@ read 4.5 % drift where its 5-unit means drift 0.7 %). On the smoke profile (t_en
 dx 0.05 / 0.04) the single frames read SPH 2.5 / 0.4 %, TVF 8.5 / 9.9 %, Riemann 15.0 / 7.8 %, the
 window means 2.6 / 2.4 %, 6.8 / 8.9 %, 9.6 / 8.3 % (the flow is still spinning up at t = 4).
 
-    python experiments/ldc2d/analysis.py --profile smoke [--results results/smoke]   (re-evaluate)
+The harness's analysis module (lab.experiment): out of the runs' keys, so editing it (or the
+`analysis` settings) re-evaluates the stored runs on the next make without re-running them.
 """
 import dataclasses
 import json
@@ -27,29 +28,41 @@ import h5py
 import numpy as np
 
 from sph.cases import ldc_reference as ref
-from lab import keys, record
+from lab import record as records
+from lab.protocol import Table
 from sph.kernels import make_kernel
+from sph.precision import resolve
 from sph.state import FLUID, MOVING_WALL, WALL
-try:
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import settings as S
+
+TABLE = Table(rows="metrics")
 
 
-def code_key() -> str:
-    """The code an evaluation depends on (this file and sph.cases.ldc_reference, without docstrings):
-    part of the cache key of a run's metrics row, beside the run's own key."""
-    return keys.files_digest([__file__, ref.__file__])
+def read_trajectory(path) -> dict:
+    """What `metrics` reads of a run's trajectory: its path (the Interpolator reads the frames it needs)."""
+    return {"path": Path(path)}
+
+
+def metrics(run, traj: dict) -> dict:
+    """The metrics row of one finished run (`evaluate`)."""
+    return evaluate(run.settings, run.method, run.dx, traj["path"].parent)[0]
+
+
+def record(run, row: dict) -> dict:
+    """Target: the first figure that shows the run (ldc2d when none does)."""
+    return {"target": run.groups[0] if run.groups else "ldc2d",
+            "errors": {"ghia_u_rms": row["u_rms"], "ghia_v_rms": row["v_rms"],
+                       "ghia_rms": float(np.hypot(row["u_rms"], row["v_rms"]) / np.sqrt(2))}}
 
 
 class Interpolator:
     """Centreline interpolation of one run's frames (reads traj.h5 and metadata.json)."""
 
-    def __init__(self, folder, analysis: "S.Analysis"):
+    def __init__(self, folder, analysis):
         folder = Path(folder)
         self.meta = json.loads((folder / "metadata.json").read_text())
         self.analysis = analysis
         num = self.meta["numerics"]
+        resolve(num["dtype"])  # the run's precision (x64 on for a float64 run), whatever ran before in the process
         dx = float(self.meta["dx"])
         self.kernel = make_kernel(num["kernel"], num["h_factor"] * dx, int(self.meta["dim"]))
         self.offset = float(self.meta["cavity_offset"])
@@ -100,10 +113,10 @@ class Interpolator:
 
 
 # -- evaluation of one run -------------------------------------------------------------------------
-def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
-    """Profiles (saved to profiles.npz) and the metrics of one finished run (steadiness: window means,
-    module docstring)."""
-    folder = S.run_dir(results, method, dx)
+def evaluate(exp, method: str, dx: float, folder) -> tuple[dict, dict]:
+    """The metrics row of one finished run in `folder` (steadiness: window means, module docstring) and its
+    profiles (y, u, u_std along x = 0.5; x, v, v_std along y = 0.5; at Ghia's points; t_from, t_to)."""
+    folder = Path(folder)
     ip = Interpolator(folder, exp.analysis)
     an = exp.analysis
     yg, ug = ref.ghia("u", exp.ghia_re)
@@ -120,12 +133,12 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
     else:
         change = np.nan
     t = ip.time
-    np.savez(S.profiles_path(results, method, dx), y=line, u=u_l, u_std=u_l_std, x=line, v=v_l, v_std=v_l_std,
-             ghia_y=yg, ghia_u=ug, sim_u=u_g, sim_u_std=u_g_std, ghia_x=xg, ghia_v=vg, sim_v=v_g, sim_v_std=v_g_std,
-             t_from=t[last[0]], t_to=t[last[-1]])
+    lines = dict(y=line, u=u_l, u_std=u_l_std, x=line, v=v_l, v_std=v_l_std, ghia_y=yg, ghia_u=ug, sim_u=u_g,
+                 sim_u_std=u_g_std, ghia_x=xg, ghia_v=vg, sim_v=v_g, sim_v_std=v_g_std, t_from=t[last[0]],
+                 t_to=t[last[-1]])
 
     # the same deviations with the other wall treatment of the interpolation, for comparison
-    other = next(w for w in S.WALL_MODES if w != an.walls)
+    other = "fluid" if an.walls == "mirror" else "mirror"
     ip_o = Interpolator(folder, dataclasses.replace(an, walls=other))
     uo, _, vo, _ = ip_o.averaged(last, yg, xg)
     with h5py.File(folder / "traj.h5", "r") as f:
@@ -149,26 +162,5 @@ def evaluate(exp: "S.Experiment", method: str, dx: float, results) -> dict:
            "v_max": float(np.max(v_l)), "v_min": float(np.min(v_l)),
            "profile_change": change, "e_kin_change": ref.window_change(t, ip.e_kin, an.steady_window),
            "e_kin_end": float(ip.e_kin[-1]), "density_error_max": rho_err, "fluid_outside": outside,
-           **record.timing(attrs, n_steps), "n_reallocations": int(attrs.get("n_reallocations", 0))}
-    return row
-
-
-def main(args):
-    exp = S.load(args.profile)
-    results = args.results
-    from lab import io
-    for dx in exp.dx:
-        for m in exp.methods:
-            st = io.trajectory_status(S.run_dir(results, m.name, dx) / "traj.h5")
-            if st["complete"]:
-                row = evaluate(exp, m.name, dx, results)
-                print(f"{m.name} {S.dx_tag(dx)}: u_rms {row['u_rms']:.4f} v_rms {row['v_rms']:.4f} "
-                      f"(interior {row['u_rms_interior']:.4f} / {row['v_rms_interior']:.4f})")
-            else:
-                print(f"{m.name} {S.dx_tag(dx)}: not finished ({st['n_frames']} frames)")
-
-
-if __name__ == "__main__":
-    from lab.cli import profile_main
-
-    profile_main(main, __doc__)
+           **records.timing(attrs, n_steps), "n_reallocations": int(attrs.get("n_reallocations", 0))}
+    return row, lines

@@ -19,8 +19,9 @@ for m in "${METHODS[@]}"; do
   if [ -f "$pidf" ] && kill -0 "$(cat "$pidf")" 2>/dev/null; then
     echo "$m $FIG: already running (pid $(cat "$pidf"))"; continue
   fi
-  setsid nohup nice -n 10 .venv/bin/python experiments/ldc2d/run.py --profile "$PROFILE" --results "results/$PROFILE" \
-    --fig "$FIG" --only "$m" --no-progress --log-every 10 ${LDC2D_FLAGS-} >> "$LOGS/${m}_$FIG.log" 2>&1 < /dev/null &
+  setsid nohup nice -n 10 .venv/bin/python -m lab.experiment experiments/ldc2d --profile "$PROFILE" \
+    --results "results/$PROFILE" --group "$FIG" --method "$m" --no-progress --log-every 10 \
+    >> "$LOGS/${m}_$FIG.log" 2>&1 < /dev/null &
   echo $! > "$pidf"
   echo "$m $FIG: started (pid $!), log $LOGS/${m}_$FIG.log"
 done

@@ -16,7 +16,7 @@ Outputs (results/<profile>/stability/):
   stability.md         the same as a readable markdown table, with the criteria and failure messages
 
 Caching: a case whose result.json carries the fingerprint of its current inputs (its simulation
-settings and the code of sph/, cases.py, settings.py and tgv2d's relaxation) is not re-run
+settings and the code of sph/, cases.py and settings.py) is not re-run
 (`--force` re-runs). Pass/fail is evaluated from the stored metrics every time the table is written,
 so editing `criteria` or `expected` in config.yaml, or this file, re-evaluates without re-running.
 

@@ -3,27 +3,23 @@ and walls) of JAX-SPH's hot channel at the profile's `snapshot_times` (nearest w
 fixed colour range [0, 1]; plus fig10_series: heated-wall Nusselt number, outlet and maximum fluid
 temperature and the bulk velocity against start-up Poiseuille flow over time.
 
-Reads results/<profile>/thermal/channel_dx<dx>/{frames.npz,series.csv} and channel_metrics.csv;
-writes results/<profile>/fig10/fig10.{png,pdf}, fig10_series.png, metrics.csv (the channel
-metrics row of this dx) and series.csv (a copy of the per-frame diagnostics).
+Reads the current channel run and channel_metrics.csv (lab.experiment: refused, naming them, when
+the run is missing or stale); writes <out>/fig10.{png,pdf}, fig10_series.png, metrics.csv (the
+channel metrics row of this dx) and series.csv (the per-frame diagnostics, study.channel_series;
+make: results/<profile>/fig10/).
 
-    python experiments/thermal/plot_fig10.py --profile smoke [--results results/smoke]
+    python experiments/thermal/plot_fig10.py --profile smoke [--results results/smoke] [--out DIR]
 """
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
+from lab.experiment import plot_main  # noqa: E402
 from lab.figures import save_figure  # noqa: E402
 from sph.state import FLUID  # noqa: E402
-try:  # noqa: E402
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import settings as S
 
 CMAP = "inferno"
 
@@ -43,14 +39,13 @@ def periodic_copies(r, values, length: float, margin: float):
             np.concatenate([values, values[left], values[right]]))
 
 
-def plot(exp: "S.Experiment", results) -> Path:
-    c = exp.channel
-    folder = S.channel_dir(results, c.dx)
-    data = np.load(folder / "frames.npz")
-    series = pd.read_csv(folder / "series.csv")
-    out = Path(results) / "fig10"
-    out.mkdir(parents=True, exist_ok=True)
-    box = data["box"]
+def plot(exp, out):
+    c = exp.settings.channel
+    run = next(r for r in exp.runs if r.kind == "channel")
+    table = exp.table([run])
+    data = exp.trajectory(run)
+    series = exp.study.channel_series(run, data)
+    box = np.array([hi for _, hi in data["metadata"]["bounds"]])
     dT = c.T_hot - c.T_ref
     idx = snapshot_indices(data["time"], c.snapshot_times)
     width = 8.0
@@ -58,11 +53,11 @@ def plot(exp: "S.Experiment", results) -> Path:
     fig, axes = plt.subplots(len(idx), 1, figsize=(width, 0.9 + len(idx) * (panel_h + 0.25)),
                              constrained_layout=True, squeeze=False, sharex=True)
     size = (1.2 * 0.82 * width * 72 * c.dx / box[0]) ** 2  # squares slightly over one spacing (points^2)
-    fluid = data["tag"] == FLUID
+    fluid = data["particle_type"] == FLUID
     for ax, k in zip(axes[:, 0], idx):
-        r, theta = periodic_copies(data["r"][k], (data["T"][k] - c.T_ref) / dT, box[0], 2 * c.dx)
+        r, theta = periodic_copies(data["position"][k], (data["temperature"][k] - c.T_ref) / dT, box[0], 2 * c.dx)
         sc = ax.scatter(r[:, 0], r[:, 1], c=theta, s=size, marker="s", linewidths=0, cmap=CMAP, vmin=0.0, vmax=1.0)
-        rw = data["r"][k][~fluid]
+        rw = data["position"][k][~fluid]
         ax.scatter(rw[:, 0], rw[:, 1], s=size * 0.08, c="w", marker=".", linewidths=0, alpha=0.5)
         ax.set(xlim=(0, box[0]), ylim=(0, box[1]), aspect="equal", yticks=[])
         ax.set_title(f"t = {data['time'][k]:.3g}", fontsize=9, loc="left", pad=2)
@@ -92,14 +87,10 @@ def plot(exp: "S.Experiment", results) -> Path:
         a.grid(alpha=0.3)
     fig.savefig(out / "fig10_series.png", dpi=150)
     plt.close(fig)
-    table = pd.read_csv(S.out_dir(results) / "channel_metrics.csv")
     table[np.isclose(table["dx"], c.dx)].to_csv(out / "metrics.csv", index=False)
     series.to_csv(out / "series.csv", index=False)
-    print(f"fig10 -> {out / 'fig10.png'}, {out / 'fig10_series.png'}, {out / 'metrics.csv'}, {out / 'series.csv'}")
     return out / "fig10.png"
 
 
 if __name__ == "__main__":
-    from lab.cli import experiment_main
-
-    experiment_main(plot, S.load, __doc__)
+    plot_main(plot, __file__, __doc__)

@@ -2,43 +2,44 @@
 against the analytical decay exp(-alpha k^2 t), for every dx of the profile, and the decay-rate
 error against dx.
 
-Reads results/<profile>/thermal/sine_dx<dx>/series.csv and sine_metrics.csv; writes
-results/<profile>/heat_validation/heat_validation.{png,pdf} and metrics.csv (the rows of the
-profile's spacings). Exits with status 1 (after writing) when the `report_dx` run misses
-`target_relerr`.
+Reads the current sine runs and sine_metrics.csv (lab.experiment: refused, naming them, when a run
+is missing or stale); writes <out>/heat_validation.{png,pdf} and metrics.csv (the rows of the
+profile's spacings; make: results/<profile>/heat_validation/). Exits with status 1 (after writing)
+when the `report_dx` run misses `target_relerr`.
 
-    python experiments/thermal/plot_heat_validation.py --profile smoke [--results results/smoke]
+    python experiments/thermal/plot_heat_validation.py --profile smoke [--results results/smoke] [--out DIR]
 """
 import sys
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
+from lab.experiment import plot_main  # noqa: E402
 from lab.figures import save_figure  # noqa: E402
 
-try:  # noqa: E402
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import settings as S
+
+def plot(exp, out):
+    """Write the figure and metrics; exit with status 1 (after writing) when `report_dx` misses its target."""
+    row = validation(exp, out)
+    if not row["meets_target"]:
+        sys.exit(1)
+    return out / "heat_validation.png"
 
 
-def plot(exp: "S.Experiment", results) -> dict:
+def validation(exp, out) -> dict:
     """Write the figure and metrics; return the metrics row of `report_dx`."""
-    d = exp.diffusion
-    out = Path(results) / "heat_validation"
-    out.mkdir(parents=True, exist_ok=True)
-    table = pd.read_csv(S.out_dir(results) / "sine_metrics.csv")
+    d = exp.settings.diffusion
+    sines = [r for r in exp.runs if r.kind == "sine"]
+    table = exp.table(sines)
     table = table[[any(np.isclose(x, dx) for dx in d.dx) for x in table["dx"]]].reset_index(drop=True)
     table.to_csv(out / "metrics.csv", index=False)
 
     fig, (ax_a, ax_e) = plt.subplots(1, 2, figsize=(10.0, 4.0), constrained_layout=True)
-    for i, dx in enumerate(sorted(d.dx)):
-        s = pd.read_csv(S.sine_dir(results, dx) / "series.csv")
+    for i, run in enumerate(sorted(sines, key=lambda r: r.dx)):
+        s, dx = exp.study.sine_series(run, exp.trajectory(run)), run.dx
         ax_a.plot(s["time"], 100 * s["relerr"], "o-", ms=3, lw=1, color=f"C{i}", label=f"SPH, dx = {dx:g}")
     ax_a.axhline(0.0, color="k", lw=0.8)
     ax_a.set(xlabel="t", ylabel=r"$A_{SPH}(t)/A_{exact}(t) - 1$ [%]", xlim=(0, d.t_end),
@@ -66,20 +67,11 @@ def plot(exp: "S.Experiment", results) -> dict:
     fig.suptitle("Heat operator (Cleary 1998) vs. analytical decay of a sine, periodic box at rest")
     save_figure(fig, out, "heat_validation")
     row = table[np.isclose(table["dx"], d.report_dx)].iloc[0].to_dict()
-    print(f"heat validation -> {out / 'heat_validation.png'}, {out / 'metrics.csv'}")
     print(f"dx = {d.report_dx:g}: decay-rate error {100 * row['decay_rate_relerr']:+.3f} %, amplitude error at "
           f"t = {d.t_end:g} {100 * row['amplitude_relerr_tend']:+.3f} % (target {100 * d.target_relerr:g} %): "
           f"{'met' if row['meets_target'] else 'MISSED'}")
     return row
 
 
-def main(args):
-    row = plot(S.load(args.profile), args.results)
-    if not row["meets_target"]:
-        sys.exit(1)
-
-
 if __name__ == "__main__":
-    from lab.cli import profile_main
-
-    profile_main(main, __doc__)
+    plot_main(plot, __file__, __doc__)

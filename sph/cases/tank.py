@@ -8,7 +8,7 @@ largest free-fall speed of the column.
 The validated dam break (experiments/dambreak2d, JAX-SPH Fig. 8; units rho_ref = g = H = 1): the tank
 DAM_BREAK_TANK, Riemann SPH with DAM_BREAK_EFFECTS and DAM_BREAK_NUMERICS, viscosity DAM_BREAK_ETA,
 a hydrostatic start (`hydrostatic`); its comparisons with Buchner (2002) and Martin & Moyce (1952)
-are experiments/dambreak2d/evaluate.py's.
+are experiments/dambreak2d/analysis.py's.
 """
 import dataclasses
 import math

@@ -151,10 +151,17 @@ def test_inf_can_be_allowed_per_field():
         from_mapping(C, {"limit": NAN})
 
 
-def _settings(folder):
+def _load(folder):
+    """The folder's settings loader `load(profile, overrides=...)`: the protocol's (lab.experiment) for a
+    folder with a study.py, else its settings.py's."""
+    import functools
     import importlib
 
-    return importlib.import_module(f"{folder.replace('/', '.')}.settings")
+    if (ROOT / folder / "study.py").exists():
+        from lab.experiment import load_settings
+
+        return functools.partial(load_settings, ROOT / folder)
+    return importlib.import_module(f"{folder.replace('/', '.')}.settings").load
 
 
 @pytest.mark.parametrize("folder,overrides,key", [
@@ -172,24 +179,24 @@ def _settings(folder):
     ("inverse", {"u0": [NAN, -0.5]}, "u0[0]"),
 ])
 def test_experiment_settings_name_the_key(folder, overrides, key):
-    S = _settings(folder)
+    load = _load(folder)
     with pytest.raises(ConfigError) as e:
-        S.load("smoke", overrides=overrides)
+        load("smoke", overrides=overrides)
     assert key in str(e.value) and "config.yaml" in str(e.value), str(e.value)
 
 
 def test_stability_case_values_are_checked():
-    S = _settings("experiments/stability")
+    load = _load("experiments/stability")
     with pytest.raises(ConfigError, match=r"cases\.heat_sine\.T0: must be a finite number"):
-        S.load("smoke", overrides={"cases": {"heat_sine": {"T0": INF}}})
+        load("smoke", overrides={"cases": {"heat_sine": {"T0": INF}}})
 
 
 # -- 6. the dam break's heat flag in its own terms ----------------------------------------------------
 
 def test_dambreak_heat_names_its_fluid_section():
-    S = _settings("experiments/dambreak2d")
+    load = _load("experiments/dambreak2d")
     with pytest.raises(ConfigError, match=r"effects\.heat: .*`fluid` section") as e:
-        S.load("smoke", overrides={"effects": {"heat": True}})
+        load("smoke", overrides={"effects": {"heat": True}})
     assert "material.kappa" not in str(e.value)
 
 
@@ -424,7 +431,8 @@ def test_sigint_and_sigkill_resume_to_the_uninterrupted_numbers(tmp_path):
     study = _study(tmp_path)
 
     def cmd(res):
-        return [sys.executable, str(study / "run.py"), "--profile", "smoke", "--results", str(res), "--no-progress"]
+        return [sys.executable, "-m", "lab.experiment", str(study), "--profile", "smoke", "--results", str(res),
+                "--no-progress"]
 
     ref, out = tmp_path / "ref", tmp_path / "out"
     subprocess.run(cmd(ref), check=True, capture_output=True, text=True)

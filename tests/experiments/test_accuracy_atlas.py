@@ -36,6 +36,10 @@ def test_sweep_writes_the_four_outputs_and_a_record_per_run(built):
     assert n == len(sw.methods) * len(sw.dx) * len(sw.dtypes) * len(sw.kernels)
     for name in ("runs.csv", "accuracy.png", "accuracy.pdf", "convergence.png", "accuracy.md"):
         assert (out / name).stat().st_size > 0, name
+    import matplotlib.image as mpimg
+
+    h, w = mpimg.imread(out / "accuracy.png").shape[:2]  # the two problems side by side, legend below
+    assert w == round(A.ATLAS_WIDTH_IN * 150) and 0.3 * w < h < w
     tgv = table[table["experiment"] == "tgv2d"]
     assert len(tgv) == n
     assert set(record.RECORD_COLUMNS) <= set(table.columns)
@@ -122,11 +126,116 @@ def test_kernel_entries_with_their_own_smoothing_length():
     a bad entry fails naming the key."""
     atlas = S.load("smoke", overrides={"tgv": {"kernels": ["quintic", "wendland_c2@1.5"]}})
     exp = R.tgv_experiment(atlas, "wendland_c2@1.5", "float64")
-    assert exp.numerics.kernel == "wendland_c2" and exp.numerics.h_factor == 1.5
-    base = R.tgv_experiment(atlas, "quintic", "float64").numerics.h_factor
+    assert exp.settings.numerics.kernel == "wendland_c2" and exp.settings.numerics.h_factor == 1.5
+    base = R.tgv_experiment(atlas, "quintic", "float64").settings.numerics.h_factor
     assert base == 1.0
     assert S.tgv_results("r", "wendland_c2@1.5", "float32").name == "wendland_c2_h1.5_float32"
     assert S.tgv_results("r", "quintic", "float32").name == "quintic_float32"
     for bad in ("wendland_c2@", "wendland_c2@-1", "wendland_c2@x", "cubic@1.5"):
         with pytest.raises(sph.ConfigError, match=r"tgv\.kernels\[1\]"):
             S.load("smoke", overrides={"tgv": {"kernels": ["quintic", bad]}})
+
+
+def synthetic_runs(n_problems: int, seed: int = 0) -> pd.DataFrame:
+    """Run records of the first `n_problems` problems of the atlas: three methods, two kernels (one
+    also at h = 1.5 dx), both dtypes, three spacings each; errors and wall times over one to three
+    decades (a narrow span exercises the 1-2-5 tick labels)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for k, (name, (exp, col, _)) in enumerate(list(A.PROBLEMS.items())[:n_problems]):
+        col = col or "err_u_max_mean"
+        span = 1 + k % 3  # decades
+        for method in ("sph", "tvf", "riemann"):
+            for kernel, h in (("quintic", 1.0), ("wendland_c2", 1.0), ("wendland_c2", 1.5)):
+                for dtype in ("float64", "float32"):
+                    for dx in (0.04, 0.02, 0.01):
+                        rows.append({"experiment": exp, "method": method, "kernel": kernel, "h_factor": h,
+                                     "dtype": dtype, "dx": dx, "n_particles": int(1 / dx ** 2),
+                                     "wall_s": 10 ** rng.uniform(2, 2 + span), col: 10 ** rng.uniform(-3, -3 + span)})
+    return pd.DataFrame(rows)
+
+
+def drawn_texts(fig) -> list:
+    """(text, window extent) of every non-empty text the drawn figure shows: titles, axis labels, the
+    tick labels inside their axis's range, legend titles and entries."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    ticks, hidden = {}, set()
+    for ax in fig.axes:
+        for i, axis in enumerate((ax.xaxis, ax.yaxis)):
+            for t in axis.get_ticklabels(which="both") + [axis.label]:
+                ticks[id(t)] = (ax.get_window_extent(r), i)
+                if not ax.axison:  # the legend row's axes: not drawn
+                    hidden.add(id(t))
+        ticks.pop(id(ax.xaxis.label)), ticks.pop(id(ax.yaxis.label))
+    out = []
+    for t in fig.findobj(Text):
+        if not t.get_visible() or not t.get_text().strip() or id(t) in hidden:
+            continue
+        bb = t.get_window_extent(r)
+        if id(t) in ticks:  # a tick label outside its axis's range is not drawn
+            axbb, i = ticks[id(t)]
+            c = (bb.x0 + bb.x1) / 2 if i == 0 else (bb.y0 + bb.y1) / 2
+            lo, hi = (axbb.x0, axbb.x1) if i == 0 else (axbb.y0, axbb.y1)
+            if not lo - 1 <= c <= hi + 1:
+                continue
+        out.append((t.get_text(), bb))
+    return out
+
+
+@pytest.mark.parametrize("n, grid", [(6, (2, 3)), (7, (3, 3)), (2, (1, 2))])
+def test_atlas_is_a_grid_readable_at_readme_width(n, grid):
+    """The atlas is a grid of at most three columns, 9 in wide (a 9-point label ~11 px at the README's
+    ~800 px), every panel with both axis labels and no legend of its own; one shared legend below every
+    panel; no two texts (titles, labels, drawn tick labels, legend entries) overlap."""
+    import matplotlib.pyplot as plt
+
+    atlas = S.load("smoke")
+    runs = synthetic_runs(n)
+    tables = {name: A.problem_table(runs, atlas, name) for name in A.PROBLEMS}
+    fig, panels = A.atlas_figure(tables)
+    try:
+        assert A.atlas_layout(n) == grid and len(panels) == n
+        assert fig.get_figwidth() == pytest.approx(A.ATLAS_WIDTH_IN) and fig.get_figheight() < 1.3 * fig.get_figwidth()
+        for k, ax in enumerate(panels):
+            rows, cols, *_ = ax.get_subplotspec().get_geometry()
+            assert (rows - 1, cols) == grid  # the grid has one more row, the legend's
+            spec = ax.get_subplotspec()
+            assert (spec.rowspan.start, spec.colspan.start) == divmod(k, grid[1])
+            assert ax.get_xlabel() and ax.get_ylabel() and ax.get_title()
+            assert ax.get_legend() is None  # nothing over the data or the Pareto front
+        texts = drawn_texts(fig)
+        r = fig.canvas.get_renderer()
+        legends = [a.get_legend() for a in fig.axes if a.get_legend() is not None]
+        assert len(legends) == 3  # method (colour), kernel (shape), precision (fill) + the front
+        bottom = min(ax.get_tightbbox(r).y0 for ax in panels)
+        for leg in legends:
+            assert leg.get_window_extent(r).y1 <= bottom + 1
+            assert leg.get_window_extent(r).y0 >= 0  # inside the figure
+        for i, (a, ba) in enumerate(texts):
+            for b, bb in texts[i + 1:]:
+                assert not ba.overlaps(bb.shrunk(0.98, 0.98)), f"{a!r} runs into {b!r}"
+        labels = [t for t, _ in texts]
+        assert "float64: filled marker" in labels and "float32: open marker" in labels
+    finally:
+        plt.close(fig)
+
+
+def test_one_marker_shape_per_kernel_and_one_colour_per_method():
+    """Across the atlas's panels a kernel (with its smoothing length) has one marker shape, whatever
+    its dtype or method, and no two kernels share one; a method one colour; the dtype only the fill."""
+    atlas = S.load("smoke")
+    runs = synthetic_runs(6)
+    tables = [A.problem_table(runs, atlas, name) for name in A.PROBLEMS]
+    styles = A.family_styles(pd.concat([t for t in tables if len(t)]))
+    by_kernel, by_method = {}, {}
+    for st in styles.values():
+        by_kernel.setdefault(st["kernel"], set()).add(st["marker"])
+        by_method.setdefault(st["method"], set()).add(st["color"])
+        assert (st["mfc"] == "none") == (st["dtype"] == "float32")
+    assert all(len(m) == 1 for m in by_kernel.values()) and len(by_kernel) == 3
+    assert len({m for ms in by_kernel.values() for m in ms}) == len(by_kernel)
+    assert all(len(c) == 1 for c in by_method.values())
+    assert len({c for cs in by_method.values() for c in cs}) == len(by_method)

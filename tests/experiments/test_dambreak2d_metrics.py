@@ -1,13 +1,16 @@
-"""Dam-break evaluation (experiments/dambreak2d/evaluate.py) on synthetic particle fields with known
-answers, the reference data it reads, and the config checks of experiments/dambreak2d/settings.py.
+"""Dam-break evaluation (experiments/dambreak2d/analysis.py) on synthetic particle fields with known
+answers, the reference data it reads, and the config checks of experiments/dambreak2d/study.py's Settings.
 No simulation: runs in a second or two."""
 import numpy as np
 import pytest
 
 from lab.configtools import ConfigError
 from sph.kernels import make_kernel
-from experiments.dambreak2d import evaluate as E
-from experiments.dambreak2d import settings as S
+from experiments.dambreak2d import analysis as E
+from lab.experiment import load_settings
+from sph_test_helpers import ROOT
+
+DAMBREAK = ROOT / "experiments" / "dambreak2d"
 
 
 def test_first_peak_of_a_synthetic_signal():
@@ -93,16 +96,16 @@ def test_moving_average_keeps_constants_and_lines():
 
 def test_config_profiles_load():
     for profile in ("paper", "smoke"):
-        exp = S.load(profile)
+        exp = load_settings(DAMBREAK, profile)
         assert exp.g == 1.0 and exp.effects.riemann and exp.effects.density_evolution
         assert exp.material(exp.column("tall")).u_ref == pytest.approx(np.sqrt(2.0))
-    paper = S.load("paper")
+    paper = load_settings(DAMBREAK, "paper")
     assert paper.dx == 0.02 and paper.column("tall").t_end == 8.0
     assert (paper.column("tall").width, paper.column("square").width) == (2.0, 1.0)
     # the surge-front checks: the paper's square column and its numerics, only dx and walls differ
     for profile, dx, walls in (("square_fine", 0.01, "free_slip"), ("square_coarse", 0.04, "free_slip"),
                                ("square_noslip", 0.02, "no_slip")):
-        exp = S.load(profile)
+        exp = load_settings(DAMBREAK, profile)
         assert (exp.dx, exp.effects.walls) == (dx, walls)
         assert [c.name for c in exp.columns] == ["square"] and exp.column("square").width == 1.0
         assert exp.numerics == paper.numerics and exp.effects.riemann and exp.effects.density_reinit_every == 20
@@ -120,4 +123,4 @@ def test_config_profiles_load():
 ])
 def test_bad_config_names_the_key(override, key):
     with pytest.raises(ConfigError, match=key.replace("[", r"\[").replace("]", r"\]")):
-        S.load("smoke", overrides=override)
+        load_settings(DAMBREAK, "smoke", overrides=override)

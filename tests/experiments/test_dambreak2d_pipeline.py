@@ -1,6 +1,6 @@
-"""End-to-end 2D dam break (experiments/dambreak2d) on the smoke profile: run.py (both columns,
-Riemann SPH in the closed tank) -> traj.h5 + metadata.json -> evaluate.py (series.csv, metrics.csv)
--> plot_fig8.py, then the physics the coarse run must already get right:
+"""End-to-end 2D dam break (experiments/dambreak2d) on the smoke profile, through the harness
+(lab.experiment): the runs (both columns, Riemann SPH in the closed tank) -> traj.h5 + metadata.json
+-> analysis.py (series, metrics.csv) -> plot_fig8.py, then the physics the coarse run must already get right:
 
 - no fluid particle leaves the tank, the density stays within a few per cent of rho_ref;
 - the column starts hydrostatic, p = rho g (H - y);
@@ -18,30 +18,30 @@ import pandas as pd
 import pytest
 
 import sph
-from lab import io
-from experiments.dambreak2d import evaluate as E
+from lab.experiment import Experiment
 from experiments.dambreak2d import plot_fig8 as P
-from experiments.dambreak2d import run as R
-from experiments.dambreak2d import settings as S
+from sph_test_helpers import ROOT
 
 
 @pytest.fixture(scope="module")
 def smoke(tmp_path_factory):
-    """(experiment, results folder, metrics table) of one smoke run of every column."""
-    exp = S.load("smoke")
-    results = tmp_path_factory.mktemp("dambreak_smoke")
-    R.run_all(exp, results, progress=False)
-    table = E.evaluate_all(exp, results).set_index("column")
-    return exp, results, table
+    """(settings, harness experiment, metrics table) of one smoke run of every column."""
+    harness = Experiment(ROOT / "experiments" / "dambreak2d", "smoke", tmp_path_factory.mktemp("dambreak_smoke"))
+    table = harness.run_all(progress=False).set_index("column")
+    return harness.settings, harness, table
 
 
-def _series(exp, results, column):
-    return pd.read_csv(S.run_dir(results, column, exp.dx) / "series.csv")
+def _series(harness, column):
+    return P.column_series(harness, column)
+
+
+def _folder(harness, column):
+    return harness.out_dir / P.column_run(harness, column).name
 
 
 def test_metrics_rows(smoke):
     exp, results, table = smoke
-    on_disk = pd.read_csv(S.metrics_path(results))
+    on_disk = pd.read_csv(results.metrics_path)
     assert sorted(on_disk["column"]) == sorted(c.name for c in exp.columns)
     for c in exp.columns:
         row = table.loc[c.name]
@@ -49,7 +49,7 @@ def test_metrics_rows(smoke):
         assert row["n_steps"] == round(c.t_end / row["dt"]) and row["t_end"] == pytest.approx(c.t_end, abs=row["dt"])
         assert row["wall_s"] > 0 and row["compile_s"] > 0 and np.isfinite(row["ms_per_step"])
         assert abs(row["write_every"] * row["dt"] - exp.frame_dt) <= 0.5 * row["dt"]
-        meta = json.loads((S.run_dir(results, c.name, exp.dx) / "metadata.json").read_text())
+        meta = json.loads((_folder(results, c.name) / "metadata.json").read_text())
         assert meta["sequence_length"] == row["n_frames"] and meta["n_fluid"] == row["n_fluid"]
     tall, square = table.loc[exp.pressure_column], table.loc[exp.front_column]
     for key in ("p_peak", "p_peak_t", "p_arrival_t", "p_rms", "p_peak_smooth", "ref_p_peak"):
@@ -62,7 +62,7 @@ def test_no_particle_leaves_the_tank(smoke):
     exp, results, table = smoke
     for c in exp.columns:
         assert table.loc[c.name, "n_left_tank"] == 0
-        assert _series(exp, results, c.name)["n_outside"].max() == 0
+        assert _series(results, c.name)["n_outside"].max() == 0
 
 
 def test_density_stays_bounded(smoke):
@@ -76,7 +76,7 @@ def test_density_stays_bounded(smoke):
 def test_initial_column_is_hydrostatic(smoke):
     exp, results, _ = smoke
     c = exp.column(exp.front_column)
-    tr = io.read_trajectory(S.run_dir(results, c.name, exp.dx) / "traj.h5")
+    tr = results.trajectory(P.column_run(results, c.name))
     fluid = tr["particle_type"] == sph.FLUID
     y = tr["position"][0, fluid, 1] - exp.offset
     np.testing.assert_allclose(tr["pressure"][0, fluid], exp.fluid.rho_ref * exp.g * (c.height - y), atol=1e-12)
@@ -86,7 +86,7 @@ def test_initial_column_is_hydrostatic(smoke):
 def test_front_advances_monotonically_and_as_measured(smoke):
     exp, results, table = smoke
     c = exp.column(exp.front_column)
-    s = _series(exp, results, c.name)
+    s = _series(results, c.name)
     t, x = s["t"].to_numpy(), s["x_front"].to_numpy()
     before_wall = x < (exp.tank.length - exp.dx) / c.height
     dxf = np.diff(x[before_wall])
@@ -109,7 +109,7 @@ def test_front_advances_monotonically_and_as_measured(smoke):
 def test_wall_pressure_is_causal_finite_and_positive(smoke):
     exp, results, table = smoke
     c = exp.column(exp.pressure_column)
-    s = _series(exp, results, c.name)
+    s = _series(results, c.name)
     t, p = s["t"].to_numpy(), s["p_sensor"].to_numpy()
     assert np.all(np.isfinite(p)) and np.all(np.isfinite(s["p_sensor_smooth"]))
     # water cannot reach the far wall before the Ritter front, t < (L - width) / (2 sqrt(gH))
@@ -127,8 +127,10 @@ def test_wall_pressure_is_causal_finite_and_positive(smoke):
 
 def test_rerun_skips_and_figures_are_written(smoke):
     exp, results, _ = smoke
-    for c in exp.columns:
-        assert R.run_one(exp, c, results, progress=False)["status"] == "skipped"
-    P.plot(exp, results)
+    for run in results.runs:
+        assert results.run_one(run, progress=False).status == "skipped"
+    out = results.results / "fig8"
+    out.mkdir()
+    P.plot(results, out)
     for name in ("fig8.png", "fig8.pdf", "validation.png", "metrics.csv"):
-        assert (results / "fig8" / name).stat().st_size > 0
+        assert (out / name).stat().st_size > 0

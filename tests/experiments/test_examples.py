@@ -16,12 +16,10 @@ import pytest
 
 import sph
 from sph.cases import ldc, ldc_reference, tank, tgv, tgv3d
-from experiments.dambreak2d import settings as dambreak2d_settings
-from experiments.ldc2d import settings as ldc2d_settings
-from experiments.tgv2d import settings as tgv2d_settings
-from experiments.tgv3d import settings as tgv3d_settings
+from lab.experiment import load_settings
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "docs" / "examples"
 
 
 def _run(monkeypatch, name: str, *args) -> dict:
@@ -95,7 +93,7 @@ def test_cavity_example_profiles(monkeypatch):
 
 # -- the recipes are the experiments' ----------------------------------------------------------------
 def test_cavity_recipe_is_the_experiment_paper_profile():
-    exp = ldc2d_settings.load("paper")
+    exp = load_settings(ROOT / "experiments" / "ldc2d", "paper")
     assert exp.lid_corners == "fixed" and exp.wall_layers == 3
     assert [m.name for m in exp.methods] == list(ldc.METHODS)
     for m in exp.methods:
@@ -105,16 +103,16 @@ def test_cavity_recipe_is_the_experiment_paper_profile():
     assert scene.material == exp.material and numerics == exp.numerics_of(exp.method("riemann"))
 
 
-@pytest.mark.parametrize("case, settings", [(tgv, tgv2d_settings), (tgv3d, tgv3d_settings)])
-def test_tgv_recipes_are_the_experiment_paper_profiles(case, settings):
-    exp = settings.load("paper")
+@pytest.mark.parametrize("case, folder", [(tgv, "tgv2d"), (tgv3d, "tgv3d")])
+def test_tgv_recipes_are_the_experiment_paper_profiles(case, folder):
+    exp = load_settings(ROOT / "experiments" / folder, "paper")
     assert exp.numerics == case.NUMERICS and exp.relaxation == case.RELAXATION
     assert {m.name: m.effects for m in exp.methods} == case.METHODS
     assert case.material(re=exp.re) == exp.material
 
 
 def test_dam_break_recipe_is_the_experiment_paper_profile():
-    exp = dambreak2d_settings.load("paper")
+    exp = load_settings(ROOT / "experiments" / "dambreak2d", "paper")
     assert exp.effects == tank.DAM_BREAK_EFFECTS and exp.numerics == tank.DAM_BREAK_NUMERICS
     assert exp.fluid.eta == tank.DAM_BREAK_ETA and exp.hydrostatic_init
     assert (exp.tank.length, exp.tank.height, exp.tank.layers) == tuple(tank.DAM_BREAK_TANK.values())

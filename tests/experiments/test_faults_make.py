@@ -54,14 +54,14 @@ TGV_SMOKE = dict(dx=[0.125, 0.1], t_end=0.05, frames=5, eval_times=[0.05],
 # -- TGV: fig5 ----------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def tgv(tmp_path_factory):
-    """A copy of tgv2d (`make <its fig5>` through its own rules.mk), made once."""
+    """A copy of tgv2d (`make <its fig5>`: the protocol's rules for the folder, its rules.mk's figure folders), made once."""
     tmp = tmp_path_factory.mktemp("tgv")
     study = copy_experiment("tgv2d", tmp / "study", **TGV_SMOKE)
     results = tmp / "results"
     fig5 = results / "study" / "fig5"
 
     def run():
-        return make(results, fig5 / "fig5.png", makefiles=[study / "rules.mk"])
+        return make(results, fig5 / "fig5.png", PROTOCOL_DIRS=study)
 
     run()
     return study, results, fig5, run
@@ -130,15 +130,15 @@ def test_fig6_table_is_exactly_the_current_methods(tmp_path):
     assert len(methods) >= 2
     results = tmp_path / "results"
     fig6 = results / "fig6" / "fig6.png"
-    make(results, fig6, LDC2D=ldc)
+    make(results, fig6, PROTOCOL_DIRS=ldc)
     names = [m["name"] for m in methods]
     assert sorted(m for m, _ in rows(results / "fig6" / "metrics.csv")) == sorted(names)
     set_smoke(ldc, methods=methods[:1])
-    out = make(results, fig6, LDC2D=ldc).stdout
+    out = make(results, fig6, PROTOCOL_DIRS=ldc).stdout
     assert "fig6_runs.done changed" in out
     assert [m for m, _ in rows(results / "fig6" / "metrics.csv")] == [names[0]]
     assert (results / "ldc2d" / f"{names[1]}_dx0.05" / "traj.h5").is_file()  # kept on disk
-    out = make(results, fig6, LDC2D=ldc).stdout
+    out = make(results, fig6, PROTOCOL_DIRS=ldc).stdout
     assert "up to date with its runs" in out
 
 

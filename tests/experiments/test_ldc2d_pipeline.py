@@ -18,32 +18,42 @@ import sph
 from sph.cases import ldc_reference as LR
 from lab import io
 from lab.configtools import ConfigError
+from lab.experiment import Experiment, load_settings, run_key
 from sph.kernels import make_kernel
-from experiments.ldc2d import plot as P
-from experiments.ldc2d import run as R
-from experiments.ldc2d import settings as S
+from experiments.ldc2d import analysis as A
+from experiments.ldc2d import plot_fig6 as P
+from sph_test_helpers import ROOT
 
+LDC2D = ROOT / "experiments" / "ldc2d"
 DX = 0.05
 METHODS = ("sph", "tvf", "riemann")
 
 
+def load(profile, overrides=None):
+    return load_settings(LDC2D, profile, overrides)
+
+
+def run_dir(results, method, dx):
+    return results / "ldc2d" / f"{method}_dx{dx:g}"
+
+
 @pytest.fixture(scope="module")
 def exp():
-    return S.load("smoke")
+    return load("smoke")
 
 
 @pytest.fixture(scope="module")
 def finished(exp, tmp_path_factory):
-    """The three smoke runs at dx = 0.05: (results folder, metrics rows)."""
+    """The three smoke runs of Fig. 6 (dx = 0.05): (results folder, metrics rows)."""
     assert exp.figures["fig6"] == DX
-    results = tmp_path_factory.mktemp("ldc_smoke")
-    rows = R.run_all(exp, results, dxs=[DX], progress=False)
-    return results, rows
+    harness = Experiment(LDC2D, "smoke", tmp_path_factory.mktemp("ldc_smoke"))
+    harness.run_all([r.name for r in harness.runs if "fig6" in r.groups], progress=False)
+    return harness.results, [harness.metrics(harness.run(f"{m}_dx{DX:g}")) for m in METHODS]
 
 
 def test_metrics_csv_has_one_physical_row_per_method(exp, finished):
     results, _ = finished
-    table = pd.read_csv(S.metrics_path(results))
+    table = pd.read_csv(results / "ldc2d" / "metrics.csv")
     assert list(table["method"]) == list(METHODS)
     assert np.allclose(table["dx"], DX) and set(table["dtype"]) == {"float64"}
     for _, got in table.iterrows():
@@ -66,7 +76,7 @@ def test_metrics_csv_has_one_physical_row_per_method(exp, finished):
 @pytest.mark.parametrize("method", METHODS)
 def test_profiles_are_finite_and_lid_driven(exp, finished, method):
     results, _ = finished
-    p = np.load(S.profiles_path(results, method, DX))
+    p = A.evaluate(exp, method, DX, run_dir(results, method, DX))[1]
     y, u, x, v = p["y"], p["u"], p["x"], p["v"]
     for a in (u, v, p["sim_u"], p["sim_v"], p["u_std"], p["v_std"]):
         assert np.all(np.isfinite(a))
@@ -87,7 +97,7 @@ def test_profiles_are_finite_and_lid_driven(exp, finished, method):
 
 def test_trajectory_and_metadata(exp, finished):
     results, _ = finished
-    folder = S.run_dir(results, "riemann", DX)
+    folder = run_dir(results, "riemann", DX)
     tr = io.read_trajectory(folder / "traj.h5")
     meta = json.loads((folder / "metadata.json").read_text())
     n = 26 * 26
@@ -114,12 +124,14 @@ def test_script_profiles_equal_the_experiment_ones(exp, finished, walls):
 
     results, _ = finished
     an = dataclasses.replace(exp.analysis, walls=walls)
-    ip = analysis.Interpolator(S.run_dir(results, "tvf", DX), an)
+    ip = analysis.Interpolator(run_dir(results, "tvf", DX), an)
     frames = range(ip.n_frames - 3, ip.n_frames)
     yg, xg = LR.ghia("u", 100)[0], LR.ghia("v", 100)[0]
     u, _, v, _ = ip.averaged(frames, yg, xg)
     states = [SimpleNamespace(r=r, v=vel, u=None, rho=rho, mass=ip.mass) for r, vel, rho in map(ip.frame, frames)]
-    got = LR.compare(R.build(exp, exp.method("tvf"), DX), states, re=100, walls=walls)
+    run = Experiment(LDC2D, "smoke", results).run(f"tvf_dx{DX:g}")
+    got = LR.compare(sph.build_solver(*Experiment(LDC2D, "smoke", results).study.scene(run)), states, re=100,
+                     walls=walls)
     np.testing.assert_allclose(got["u"], u, rtol=0, atol=1e-14)
     np.testing.assert_allclose(got["v"], v, rtol=0, atol=1e-14)
     assert got["u_rms"] == pytest.approx(LR.deviations(u, v, 100)["u_rms"], abs=1e-14)
@@ -127,20 +139,27 @@ def test_script_profiles_equal_the_experiment_ones(exp, finished, walls):
 
 def test_finished_run_is_skipped_and_plotted(exp, finished):
     results, rows = finished
-    traj = S.run_dir(results, "tvf", DX) / "traj.h5"
+    traj = run_dir(results, "tvf", DX) / "traj.h5"
     before = traj.stat().st_mtime_ns
-    again = R.run_one(exp, exp.method("tvf"), DX, results, progress=False)
+    harness = Experiment(LDC2D, "smoke", results)
+    assert harness.run_one(harness.run(f"tvf_dx{DX:g}"), progress=False).status == "skipped"
+    harness.write_table()
+    again = harness.metrics(harness.run(f"tvf_dx{DX:g}"))
     assert traj.stat().st_mtime_ns == before
     assert again["wall_s"] == rows[1]["wall_s"] and again["u_rms"] == pytest.approx(rows[1]["u_rms"])
-    assert len(pd.read_csv(S.metrics_path(results))) == 3  # upserted, not appended
-    png = P.plot(exp, results, "fig6")
+    assert len(pd.read_csv(results / "ldc2d" / "metrics.csv")) == 3  # rebuilt, not appended
+    out = results / "fig6"
+    out.mkdir()
+    png = P.plot(harness, out)
     assert png.exists() and png.with_suffix(".pdf").exists()
     assert len(pd.read_csv(png.parent / "metrics.csv")) == 3
 
 
-def test_plot_refuses_missing_runs(exp, tmp_path):
-    with pytest.raises(SystemExit, match="not complete"):
-        P.plot(exp, tmp_path, "fig7")
+def test_plot_refuses_missing_runs(tmp_path):
+    from lab.io import MissingOutput
+
+    with pytest.raises(MissingOutput, match=r"run sph_dx0\.04 of profile smoke is absent"):
+        P.figure(Experiment(LDC2D, "smoke", tmp_path), tmp_path, "fig7")
 
 
 # -- reference data and interpolation --------------------------------------------------------------
@@ -205,21 +224,22 @@ def test_shepard_interpolation_reproduces_linear_fields():
 ])
 def test_config_errors_name_the_key(override, match):
     with pytest.raises(ConfigError, match=match):
-        S.load("smoke", overrides=override)
+        load("smoke", overrides=override)
 
 
 def test_unknown_profile_and_method_numerics_merge():
     with pytest.raises(ConfigError, match=r"profiles\.nope: no such profile"):
-        S.load("nope")
-    exp = S.load("paper")
+        load("nope")
+    exp = load("paper")
     assert exp.dx == (0.02, 0.01) and exp.re == pytest.approx(100.0)
     sph_num = exp.numerics_of(exp.method("sph"))
     assert sph_num.p_bg_factor == 0.01 and sph_num.cfl == exp.numerics.cfl
     assert exp.numerics_of(exp.method("tvf")).p_bg_factor == 0.0
     assert exp.effects(exp.method("riemann")).walls == "no_slip"
     # the post-processing settings do not change what a run is
-    other = S.load("paper", overrides={"analysis": {"average_frames": 40, "walls": "mirror"}})
-    m = exp.method("tvf")
-    assert S.run_fingerprint(exp, m, 0.02) == S.run_fingerprint(other, other.method("tvf"), 0.02)
-    longer = S.load("paper", overrides={"t_end": 30.0})
-    assert S.settings_fingerprint(exp, m, 0.02) != S.settings_fingerprint(longer, longer.method("tvf"), 0.02)
+    def key(overrides):
+        harness = Experiment(LDC2D, "paper", "unused", overrides)
+        return run_key(harness.run("tvf_dx0.02")), harness.spec(harness.run("tvf_dx0.02")).fingerprint
+
+    assert key({"analysis": {"average_frames": 40, "walls": "mirror"}}) == key({})
+    assert key({"t_end": 30.0})[0] != key({})[0]

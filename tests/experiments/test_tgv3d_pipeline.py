@@ -32,17 +32,21 @@ from sph.cases import tgv3d
 from sph.cases import tgv3d_reference as TR
 from lab.configtools import ConfigError
 from experiments.tgv3d import analysis as A
-from experiments.tgv3d import run as R
-from experiments.tgv3d import settings as S
+from lab.experiment import Experiment, load_settings
 
 ROOT = Path(__file__).resolve().parents[2]
+TGV3D = ROOT / "experiments" / "tgv3d"
 NU = 0.01
 EPS0 = 0.75 * NU  # exact -dE/dt at t = 0 for U = 1: nu <|grad u|^2>, <|grad u|^2> = 6 x 1/8
 
 
 @pytest.fixture(scope="module")
 def exp():
-    return S.load("smoke")
+    return load_settings(TGV3D, "smoke")
+
+
+def _run_dir(results, method, n):
+    return results / "tgv3d" / f"{method}_n{n}"
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +56,7 @@ def finished(exp, tmp_path_factory):
     proc = subprocess.run(["make", "fig9", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, capture_output=True,
                           text=True)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    series = {m.name: A.energy_series(exp, A.read_series(S.run_dir(results, m.name, exp.n_side[0]) / "traj.h5"))
+    series = {m.name: A.energy_series(exp, A.read_trajectory(_run_dir(results, m.name, exp.n_side[0]) / "traj.h5"))
               for m in exp.methods}
     return results, series
 
@@ -158,7 +162,7 @@ def test_early_decay_rate(exp, finished):
 
 def test_metrics_records_and_figure(exp, finished):
     results, _ = finished
-    table = pd.read_csv(S.metrics_path(results))
+    table = pd.read_csv(results / "tgv3d" / "metrics.csv")
     assert len(table) == len(exp.methods) * len(exp.n_side)
     assert sorted(table["method"]) == sorted(m.name for m in exp.methods)
     assert set(table["n_side"]) == set(exp.n_side)
@@ -169,7 +173,7 @@ def test_metrics_records_and_figure(exp, finished):
     assert np.all(table["other_load"] >= 0)  # measured beside each run (lab.other_load)
     assert np.all(table["e_kin_max_dev"] >= table["e_kin_rms_dev"])
     for m in exp.methods:
-        rec = json.loads((S.run_dir(results, m.name, 12) / "record.json").read_text())
+        rec = json.loads((_run_dir(results, m.name, 12) / "record.json").read_text())
         assert rec["experiment"] == "tgv3d" and rec["target"] == "fig9" and rec["dim"] == 3
         assert np.isfinite(rec["err_e_kin_rms_dev"]) and np.isfinite(rec["err_dissipation_rms_dev"])
     for name in ("fig9.png", "fig9.pdf", "metrics.csv"):
@@ -178,18 +182,18 @@ def test_metrics_records_and_figure(exp, finished):
 
 def test_finished_runs_are_skipped(exp, finished):
     results, _ = finished
-    traj = S.run_dir(results, "sph", 12) / "traj.h5"
+    traj = _run_dir(results, "sph", 12) / "traj.h5"
     before = traj.stat().st_mtime_ns
-    R.run_all(exp, results, methods=["sph"], progress=False)
+    Experiment(TGV3D, "smoke", results).run_all(only=["sph_n12"], progress=False)
     assert traj.stat().st_mtime_ns == before
 
 
 def test_bad_settings_are_named():
     with pytest.raises(ConfigError, match=r"n_side\[0\]"):
-        S.load("smoke", overrides={"n_side": [5]})
+        load_settings(TGV3D, "smoke", overrides={"n_side": [5]})
     with pytest.raises(ConfigError, match=r"reference_re"):
-        S.load("smoke", overrides={"material": {"eta": 0.02}})
+        load_settings(TGV3D, "smoke", overrides={"material": {"eta": 0.02}})
     with pytest.raises(ConfigError, match=r"relaxation\.stpes: unknown key"):
-        S.load("smoke", overrides={"relaxation": {"stpes": 3}})
+        load_settings(TGV3D, "smoke", overrides={"relaxation": {"stpes": 3}})
     with pytest.raises(ConfigError, match=r"does not divide"):
         tgv3d.scene(0.3, sph.Material(), sph.Effects())

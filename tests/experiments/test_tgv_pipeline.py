@@ -19,30 +19,37 @@ from sph import simulate
 from lab import io, tables
 from sph.cases import tgv
 from lab.configtools import ConfigError
-from experiments.tgv2d import run as R
-from experiments.tgv2d import settings as S
+from lab.experiment import Experiment, load_settings
+from sph_test_helpers import ROOT
 
+TGV2D = ROOT / "experiments" / "tgv2d"
 OVERRIDE = {"dx": [0.05], "methods": [{"name": "tvf", "effects": {"tvf": True}}], "t_end": 0.3, "frames": 6,
             "eval_times": [0.25, 1.0], "relaxation": {"steps": 100}}
 DX = 0.05
 
 
-@pytest.fixture(scope="module")
-def exp():
-    return S.load("smoke", overrides=OVERRIDE)
+def experiment(results, overrides=OVERRIDE) -> Experiment:
+    return Experiment(TGV2D, "smoke", results, overrides=overrides)
+
+
+def run_one(results, callback=None) -> dict:
+    """Run (or skip, or resume) the one run of OVERRIDE into `results`; its metrics row, the table rebuilt."""
+    exp = experiment(results)
+    exp.run_one(exp.runs[0], progress=False, callback=callback)
+    exp.write_table()
+    return exp.metrics(exp.runs[0])
 
 
 @pytest.fixture(scope="module")
-def finished(exp, tmp_path_factory):
+def finished(tmp_path_factory):
     """One uninterrupted run: (results folder, metrics row)."""
     results = tmp_path_factory.mktemp("tgv_full")
-    row = R.run_one(exp, exp.methods[0], DX, results, progress=False)
-    return results, row
+    return results, run_one(results)
 
 
-def test_metrics_row_is_physical(exp, finished):
+def test_metrics_row_is_physical(finished):
     results, row = finished
-    table = pd.read_csv(S.metrics_path(results))
+    table = pd.read_csv(experiment(results).metrics_path)
     assert len(table) == 1
     got = table.iloc[0]
     assert (got["case"], got["method"], got["dx"], got["dtype"]) == ("tgv2d", "tvf", DX, "float64")
@@ -60,9 +67,9 @@ def test_metrics_row_is_physical(exp, finished):
     assert np.isnan(got["u_max_relerr_t1"]) and np.isnan(got["e_kin_relerr_t1"])  # t > t_end
 
 
-def test_trajectory_has_lagrangebench_layout(exp, finished):
+def test_trajectory_has_lagrangebench_layout(finished):
     results, _ = finished
-    folder = S.run_dir(results, "tvf", DX)
+    folder = results / "tgv2d" / "tvf_dx0.05"
     meta = json.loads((folder / "metadata.json").read_text())
     with h5py.File(folder / "traj.h5", "r") as f:
         assert list(f.keys()) == ["00000"]
@@ -89,44 +96,44 @@ def test_trajectory_has_lagrangebench_layout(exp, finished):
     assert meta["bounds"] == [[0.0, 1.0], [0.0, 1.0]]
 
 
-def test_finished_run_is_skipped(exp, finished):
+def test_finished_run_is_skipped(finished):
     results, row = finished
-    traj = S.run_dir(results, "tvf", DX) / "traj.h5"
+    traj = results / "tgv2d" / "tvf_dx0.05" / "traj.h5"
     before = traj.stat().st_mtime_ns
-    again = R.run_one(exp, exp.methods[0], DX, results, progress=False)
+    again = run_one(results)
     assert traj.stat().st_mtime_ns == before
     assert again["wall_s"] == row["wall_s"] and again["n_frames"] == row["n_frames"]
-    assert len(pd.read_csv(S.metrics_path(results))) == 1  # upserted, not appended twice
+    assert len(pd.read_csv(experiment(results).metrics_path)) == 1  # rebuilt, not appended twice
 
 
 
-def test_metrics_table_lists_exactly_the_current_runs(exp, finished, tmp_path):
+def test_metrics_table_lists_exactly_the_current_runs(finished, tmp_path):
     """metrics.csv is rebuilt from the trajectories of the current config: a damaged table is
     replaced, and a switched dtype or a removed method leaves no row of the old config behind."""
     results, _ = finished
     work = tmp_path / "results"
     shutil.copytree(results, work)
-    path = S.metrics_path(work)
+    path = experiment(work).metrics_path
     path.write_bytes(path.read_bytes()[:40])  # truncated by a killed writer
-    assert len(R.write_metrics(exp, work)) == 1 and len(pd.read_csv(path)) == 1
-    f32 = S.load("smoke", overrides={**OVERRIDE, "numerics": {"dtype": "float32"}})
-    assert R.write_metrics(f32, work).empty and not path.exists()  # no float32 run has finished
-    other = S.load("smoke", overrides={**OVERRIDE, "methods": [{"name": "sph", "effects": {}}], "fig4_method": "sph"})
-    assert R.write_metrics(other, work).empty and not path.exists()
+    assert len(experiment(work).write_table()) == 1 and len(pd.read_csv(path)) == 1
+    f32 = experiment(work, {**OVERRIDE, "numerics": {"dtype": "float32"}})
+    assert f32.write_table().empty and not path.exists()  # no float32 run has finished
+    other = experiment(work, {**OVERRIDE, "methods": [{"name": "sph", "effects": {}}], "fig4_method": "sph"})
+    assert other.write_table().empty and not path.exists()
     with pytest.raises(FileNotFoundError, match="no metrics table"):
         tables.read_table(path)
-    assert len(R.write_metrics(exp, work)) == 1 and len(pd.read_csv(path)) == 1
+    assert len(experiment(work).write_table()) == 1 and len(pd.read_csv(path)) == 1
 
 class _Stop(Exception):
     pass
 
 
-def test_interrupted_run_resumes_from_checkpoint(exp, finished, tmp_path):
+def test_interrupted_run_resumes_from_checkpoint(finished, tmp_path):
     results_full, row_full = finished
     # reuse the cached relaxation so that both runs start from the same particles
     for suffix in (".npy", ".json"):
-        src = S.relaxed_path(results_full, DX).with_suffix(suffix)
-        dst = S.relaxed_path(tmp_path, DX).with_suffix(suffix)
+        src = (results_full / "tgv2d" / "relaxed_dx0.05.npy").with_suffix(suffix)
+        dst = (tmp_path / "tgv2d" / "relaxed_dx0.05.npy").with_suffix(suffix)
         dst.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(src, dst)
 
@@ -137,17 +144,17 @@ def test_interrupted_run_resumes_from_checkpoint(exp, finished, tmp_path):
             raise _Stop
 
     with pytest.raises(_Stop):
-        R.run_one(exp, exp.methods[0], DX, tmp_path, progress=False, callback=stop_half_way)
-    traj = S.run_dir(tmp_path, "tvf", DX) / "traj.h5"
+        run_one(tmp_path, callback=stop_half_way)
+    traj = tmp_path / "tgv2d" / "tvf_dx0.05" / "traj.h5"
     status = io.trajectory_status(traj)
     assert status["exists"] and not status["complete"]
     assert half <= status["checkpoint_step"] < row_full["n_steps"]
     assert 1 < status["n_frames"] < row_full["n_frames"]
 
-    row = R.run_one(exp, exp.methods[0], DX, tmp_path, progress=False)
+    row = run_one(tmp_path)
     assert row["n_frames"] == row_full["n_frames"] and row["n_steps"] == row_full["n_steps"]
     a = io.read_trajectory(traj)
-    b = io.read_trajectory(S.run_dir(results_full, "tvf", DX) / "traj.h5")
+    b = io.read_trajectory(results_full / "tgv2d" / "tvf_dx0.05" / "traj.h5")
     np.testing.assert_array_equal(a["step"], b["step"])
     # float64 and the same program: resumed equals uninterrupted to round-off (1e-12, as every resume check)
     np.testing.assert_allclose(a["e_kin"], b["e_kin"], rtol=1e-12)
@@ -181,6 +188,6 @@ def test_blow_up_names_step_and_particle(tmp_path):
 
 def test_bad_config_key_is_named():
     with pytest.raises(ConfigError, match=r"relaxation\.stpes: unknown key"):
-        S.load("smoke", overrides={"relaxation": {"stpes": 3}})
+        load_settings(TGV2D, "smoke", overrides={"relaxation": {"stpes": 3}})
     with pytest.raises(ConfigError, match=r"dx\[0\]"):
-        S.load("smoke", overrides={"dx": [0.03]})
+        load_settings(TGV2D, "smoke", overrides={"dx": [0.03]})

@@ -1,7 +1,8 @@
 """End-to-end thermal experiment (experiments/thermal) on its smoke profile: the heat-operator
 validation (sine in a periodic box, dx = 0.05, t = 0.25) and the hot channel of Fig. 10 (dx = 0.04,
-t = 0.3): run -> series/frames/metadata -> metrics csv -> figures, skipping of finished runs, the
-maximum-principle check and config errors. A few seconds of stepping, the rest is compilation.
+t = 0.3), run through the harness (lab.experiment): runs -> trajectories -> metrics tables -> figures,
+skipping of finished runs, the maximum-principle check and config errors. A few seconds of stepping,
+the rest is compilation.
 """
 import json
 
@@ -11,29 +12,26 @@ import pytest
 
 from sph.cases import channel
 from lab.configtools import ConfigError
+from lab.experiment import Experiment, load_settings
 from experiments.thermal import plot_fig10, plot_heat_validation
-from experiments.thermal import run as R
-from experiments.thermal import settings as S
+from sph_test_helpers import ROOT
+
+THERMAL = ROOT / "experiments" / "thermal"
 
 
 @pytest.fixture(scope="module")
-def exp():
-    return S.load("smoke")
+def finished(tmp_path_factory):
+    exp = Experiment(THERMAL, "smoke", tmp_path_factory.mktemp("thermal"))
+    exp.run_all(progress=False)
+    return exp
 
 
-@pytest.fixture(scope="module")
-def finished(exp, tmp_path_factory):
-    results = tmp_path_factory.mktemp("thermal")
-    out = R.run_all(exp, results, "all", progress=False)
-    return results, out
-
-
-def test_sine_row_meets_the_analytical_decay(exp, finished):
-    results, out = finished
-    table = pd.read_csv(S.out_dir(results) / "sine_metrics.csv")
+def test_sine_row_meets_the_analytical_decay(finished):
+    exp = finished
+    table = pd.read_csv(exp.out_dir / "sine_metrics.csv")
     assert len(table) == 1
     row = table.iloc[0]
-    d = exp.diffusion
+    d = exp.settings.diffusion
     assert (row["case"], row["dx"], row["dtype"]) == ("heat_sine", 0.05, "float64")
     assert row["n_particles"] == 400 and row["n_steps"] == round(d.t_end / row["dt"])
     assert row["alpha"] == pytest.approx(7.313 / 305.27)
@@ -45,15 +43,16 @@ def test_sine_row_meets_the_analytical_decay(exp, finished):
     assert bool(row["meets_target"]) and bool(row["motion_allowed"])
     assert row["displacement_max"] < 1e-12 and row["u_max_max"] < 1e-10  # at rest: nothing moves
     assert row["wall_s"] > 0 and row["compile_s"] > 0
-    series = pd.read_csv(S.sine_dir(results, 0.05) / "series.csv")
+    run = exp.run("sine_dx0.05")
+    series = exp.study.sine_series(run, exp.trajectory(run))
     assert len(series) == d.frames + 1 and series["time"].iloc[0] == 0.0
     assert series["relerr"].iloc[0] == pytest.approx(0.0, abs=1e-12)
 
 
-def test_channel_row_is_physical(exp, finished):
-    results, out = finished
-    c = exp.channel
-    table = pd.read_csv(S.out_dir(results) / "channel_metrics.csv")
+def test_channel_row_is_physical(finished):
+    exp = finished
+    c = exp.settings.channel
+    table = pd.read_csv(exp.out_dir / "channel_metrics.csv")
     assert len(table) == 1
     row = table.iloc[0]
     assert (row["case"], row["dx"]) == ("hot_channel", 0.04)
@@ -73,21 +72,25 @@ def test_channel_row_is_physical(exp, finished):
     assert abs(row["u_bulk_relerr_end"]) < 0.15
     assert row["density_error_max"] < 0.1   # at t = 0, from the 0.05 dx position noise (quintic, h = dx)
     assert row["density_error_end"] < 0.03
-    series = pd.read_csv(S.channel_dir(results, c.dx) / "series.csv")
+    run = exp.run("channel_dx0.04")
+    frames = exp.trajectory(run)
+    series = exp.study.channel_series(run, frames)
     assert len(series) == c.frames + 1
     assert np.all(np.diff(series["T_fluid_mean"]) > 0)  # the fluid heats up monotonically
-    frames = np.load(S.channel_dir(results, c.dx) / "frames.npz")
     n = int(row["n_particles"])
-    assert frames["r"].shape == (c.frames + 1, n, 2) and frames["T"].shape == (c.frames + 1, n)
+    assert frames["position"].shape == (c.frames + 1, n, 2) and frames["temperature"].shape == (c.frames + 1, n)
     np.testing.assert_allclose(frames["time"], series["time"])
-    meta = json.loads((S.channel_dir(results, c.dx) / "metadata.json").read_text())
+    meta = json.loads((exp.out_dir / run.name / "metadata.json").read_text())
     assert "thermal" in meta["dt_limits"] and meta["dt"] == min(v for k, v in meta["dt_limits"].items() if k != "dt")
 
 
-def test_figures_and_metrics_are_written(exp, finished):
-    results, _ = finished
-    plot_fig10.plot(exp, results)
-    row = plot_heat_validation.plot(exp, results)
+def test_figures_and_metrics_are_written(finished):
+    exp = finished
+    results = exp.results
+    for name in ("fig10", "heat_validation"):
+        (results / name).mkdir(exist_ok=True)
+    plot_fig10.plot(exp, results / "fig10")
+    row = plot_heat_validation.validation(exp, results / "heat_validation")
     for f in ("fig10/fig10.png", "fig10/fig10.pdf", "fig10/fig10_series.png", "fig10/metrics.csv",
               "heat_validation/heat_validation.png", "heat_validation/heat_validation.pdf",
               "heat_validation/metrics.csv"):
@@ -96,27 +99,29 @@ def test_figures_and_metrics_are_written(exp, finished):
     assert pd.read_csv(results / "fig10" / "metrics.csv")["case"].tolist() == ["hot_channel"]
 
 
-def test_finished_runs_are_skipped(exp, finished):
-    results, out = finished
-    paths = [S.sine_dir(results, 0.05) / "series.csv", S.channel_dir(results, exp.channel.dx) / "frames.npz"]
+def test_finished_runs_are_skipped(finished):
+    exp = finished
+    paths = [exp.out_dir / name / "traj.h5" for name in ("sine_dx0.05", "channel_dx0.04")]
     before = [p.stat().st_mtime_ns for p in paths]
-    again = R.run_all(exp, results, "all", progress=False)
+    wall = pd.read_csv(exp.out_dir / "channel_metrics.csv")["wall_s"].iloc[0]
+    exp.run_all(progress=False)
     assert [p.stat().st_mtime_ns for p in paths] == before
-    assert again["channel"]["wall_s"] == out["channel"]["wall_s"]
+    assert pd.read_csv(exp.out_dir / "channel_metrics.csv")["wall_s"].iloc[0] == wall
 
 
-def test_maximum_principle_violation_raises(exp):
+def test_maximum_principle_violation_raises(finished):
     row = {"max_principle_ok": False, "max_principle_violation": 1e-3, "T_all_min": 1.0, "T_all_max": 1.231}
     with pytest.raises(RuntimeError, match="maximum principle"):
-        R.check_maximum_principle(row, exp.channel)
+        finished.study.check_maximum_principle(row, finished.settings.channel)
 
 
 def test_channel_scene_follows_jax_sph_ht():
     """dx = 0.02: 50 x 10 fluid particles, 3 wall layers below and above over the full length, box
     1 x (0.2 + 6 dx), periodic in x only; the heated segment |x - 0.5| < 0.25 spans 24 columns (x = 0.27 ... 0.73) of
     the bottom wall; noise 0.05 dx on the fluid only."""
-    c = S.load("paper").channel
-    sc = R.channel_scene(c)
+    exp = Experiment(THERMAL, "paper", "unused")
+    c = exp.settings.channel
+    sc = exp.study.channel_scene(c)
     clean = channel.scene(c.dx, c.material, c.effects, noise_factor=0.0)
     fluid = sc.fluid_mask
     assert fluid.sum() == 500 and sc.wall_mask.sum() == 300
@@ -134,10 +139,10 @@ def test_channel_scene_follows_jax_sph_ht():
 
 def test_bad_config_is_named():
     with pytest.raises(ConfigError, match=r"channel\.dxx: unknown key"):
-        S.load("smoke", overrides={"channel": {"dxx": 0.1}})
+        load_settings(THERMAL, "smoke", overrides={"channel": {"dxx": 0.1}})
     with pytest.raises(ConfigError, match=r"channel\.snapshot_times\[1\]"):
-        S.load("smoke", overrides={"channel": {"snapshot_times": [0.0, 9.0]}})
+        load_settings(THERMAL, "smoke", overrides={"channel": {"snapshot_times": [0.0, 9.0]}})
     with pytest.raises(ConfigError, match=r"diffusion\.report_dx"):
-        S.load("smoke", overrides={"diffusion": {"report_dx": 0.03}})
+        load_settings(THERMAL, "smoke", overrides={"diffusion": {"report_dx": 0.03}})
     with pytest.raises(ConfigError, match=r"channel\.effects\.heat"):
-        S.load("smoke", overrides={"channel": {"effects": {"heat": False}}})
+        load_settings(THERMAL, "smoke", overrides={"channel": {"effects": {"heat": False}}})

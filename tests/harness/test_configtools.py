@@ -23,23 +23,27 @@ def test_every_committed_config_has_unique_keys():
 
 
 def test_a_sweep_listing_a_spacing_twice_is_refused(tmp_path):
-    import importlib.util
+    from lab.experiment import load_settings
 
     folder = copied_experiment("tgv2d", tmp_path / "study", dx=[0.05, 0.05])
-    spec = importlib.util.spec_from_file_location("copied_settings", folder / "settings.py")
-    settings = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(settings)
     with pytest.raises(sph.ConfigError, match=r"profiles\.smoke\.dx\[1\]: 0\.05 appears twice"):
-        settings.load("smoke")
+        load_settings(folder, "smoke")
 
 
-def _settings(folder):
+def _load(folder):
+    """The folder's settings loader `load(profile)`: the protocol's (lab.experiment) for a folder with a
+    study.py, else its settings.py's."""
+    import functools
     import importlib.util
 
+    if (folder / "study.py").exists():
+        from lab.experiment import load_settings
+
+        return functools.partial(load_settings, folder)
     spec = importlib.util.spec_from_file_location(f"settings_{folder.name}", folder / "settings.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module
+    return module.load
 
 
 @pytest.mark.parametrize("name, edit, blamed", [
@@ -61,7 +65,7 @@ def test_a_rule_between_keys_blames_the_key_the_user_changed(tmp_path, name, edi
     cfg["profiles"]["smoke"].update(edit)                      # the user's edit, not committed
     (folder / "config.yaml").write_text(yaml.safe_dump(cfg))
     with pytest.raises(sph.ConfigError, match=blamed + r".*\(changed since the last commit\)"):
-        _settings(folder).load("smoke")
+        _load(folder)("smoke")
 
 
 def test_a_fixed_length_tuple_key_is_parsed_entry_by_entry():

@@ -16,9 +16,10 @@ import pytest
 import yaml
 
 from sph.errors import ConfigError
-from lab import cli, io, runs, tgv2d, tgv2d_runs
+from lab import cli, io, runs
 from lab.cli import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OUTPUT, main_guard
 from lab.configtools import load_profile, load_yaml
+from lab.experiment import Experiment, load_settings
 from lab.layout import Study
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +54,8 @@ def test_a_script_with_a_tab_in_its_config_prints_one_line(tmp_path):
     shutil.copytree(ROOT / "experiments" / "tgv2d", study, ignore=shutil.ignore_patterns("__pycache__"))
     text = (study / "config.yaml").read_text().replace("    dx: [0.05, 0.04]", "\tdx: [0.05, 0.04]")
     (study / "config.yaml").write_text(text)
-    p = subprocess.run([sys.executable, str(study / "run.py"), "--profile", "smoke", "--results", str(tmp_path / "r")],
+    p = subprocess.run([sys.executable, "-m", "lab.experiment", str(study), "--profile", "smoke", "--results",
+                        str(tmp_path / "r")],
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == EXIT_CONFIG and p.stderr.strip().count("\n") == 0, p.stderr
     assert f"{study / 'config.yaml'}:" in p.stderr and "never tabs" in p.stderr and "Traceback" not in p.stderr
@@ -128,7 +130,7 @@ def _load(folder):
 
 @pytest.fixture()
 def committed_ldc(tmp_path):
-    """ldc2d's settings and config in a git repository of their own, committed."""
+    """ldc2d's study and config in a git repository of their own, committed."""
     repo = tmp_path / "repo"
     folder = repo / "ldc2d"
     shutil.copytree(ROOT / "experiments" / "ldc2d", folder, ignore=shutil.ignore_patterns("__pycache__"))
@@ -148,7 +150,7 @@ def _edit(folder, fn):
 def test_changed_ghia_re_is_blamed_not_eta(committed_ldc):
     _edit(committed_ldc, lambda p: p.update(ghia_re=400))
     with pytest.raises(ConfigError) as e:
-        _load(committed_ldc).load("smoke", path=committed_ldc / "config.yaml")
+        load_settings(committed_ldc, "smoke")
     msg = str(e.value)
     assert e.value.key == "ghia_re"
     assert "profiles.paper.ghia_re: Re = rho_ref lid_velocity / eta = 100 differs from ghia_re = 400" in msg
@@ -158,7 +160,7 @@ def test_changed_ghia_re_is_blamed_not_eta(committed_ldc):
 def test_changed_eta_is_blamed_not_ghia_re(committed_ldc):
     _edit(committed_ldc, lambda p: p["material"].update(eta=0.0025))
     with pytest.raises(ConfigError) as e:
-        _load(committed_ldc).load("paper", path=committed_ldc / "config.yaml")
+        load_settings(committed_ldc, "paper")
     assert e.value.key == "material.eta"
     assert "disagree: material.eta = 0.0025 (changed since the last commit); ghia_re = 100" in str(e.value)
 
@@ -182,7 +184,7 @@ def test_changed_dx_is_named_with_cube_size():
 @pytest.mark.parametrize("name", ["a/../../x", "../up", "with space", "", "1st", "a.b"])
 def test_method_names_are_identifiers(name):
     with pytest.raises(ConfigError, match=r"methods\[0\]\.name: .* is not a name: it becomes a folder name"):
-        tgv2d.load(ROOT / "experiments" / "tgv2d" / "config.yaml", "smoke", overrides={"methods": [{"name": name}]})
+        load_settings(ROOT / "experiments" / "tgv2d", "smoke", overrides={"methods": [{"name": name}]})
 
 
 def test_stability_case_names_are_identifiers():
@@ -200,11 +202,10 @@ def test_memory_is_refused_in_seconds_before_anything_is_built(tmp_path, monkeyp
     import sph.checks
 
     monkeypatch.setattr(sph.checks, "available_memory", lambda: (50 * 2**20, "available host memory"))
-    exp = tgv2d.load(ROOT / "experiments" / "tgv2d" / "config.yaml", "smoke", overrides={"dx": [0.1, 0.002]})
-    study = Study("tgv2d", ROOT / "experiments" / "tgv2d")
+    exp = Experiment(ROOT / "experiments" / "tgv2d", "smoke", tmp_path, overrides={"dx": [0.1, 0.002]})
     t0 = time.perf_counter()
     with pytest.raises(sph.checks.InsufficientMemory, match=r"tgv2d at dx = 0\.002: 250,000 particles .* use a larger dx"):
-        tgv2d_runs.run_all(study, exp, tmp_path, progress=False)
+        exp.run_all(progress=False)
     assert time.perf_counter() - t0 < 5
     assert not any(tmp_path.rglob("*")), "nothing is relaxed, run or written before the refusal"
 
@@ -262,15 +263,16 @@ def test_relaxed_cache_with_another_particle_count_or_damaged_is_redone(tmp_path
 def test_damaged_checkpoint_is_set_aside_and_the_run_redone(tmp_path, capsys):
     from sph.cases import tgv
 
-    exp = tgv2d.load(ROOT / "experiments" / "tgv2d" / "config.yaml", "smoke",
+    exp = Experiment(ROOT / "experiments" / "tgv2d", "smoke", tmp_path,
                      overrides={"dx": [0.1], "t_end": 0.02, "frames": 2, "eval_times": [0.02]})
-    study = Study("tgv2d", ROOT / "experiments" / "tgv2d")
-    m = exp.methods[0]
-    sp = tgv2d_runs.spec(study, exp, m, 0.1, tmp_path)
+    run = exp.runs[0]
+    sp = exp.spec(run)
     from sph.lattice import cartesian
 
     r = cartesian([0.0, 0.0], [1.0, 1.0], 0.1)
-    build = lambda: tgv2d_runs.build(exp, m, 0.1, r)  # noqa: E731
+    from sph import build_solver
+
+    build = lambda: build_solver(*exp.study.scene(run, r))  # noqa: E731
     runs.run_cached(sp, build, progress=False)
     with h5py.File(sp.traj, "a") as f:  # a stopped run whose checkpoint lost a field
         f["00000"].attrs["complete"] = False

@@ -17,7 +17,7 @@ from sph.cases import tgv
 from sph_test_helpers import copied_experiment
 
 ROOT = Path(__file__).resolve().parents[2]
-RUN_PY = ROOT / "experiments" / "ldc2d" / "run.py"
+RUN_PY = ROOT / "experiments" / "ldc2d" / "study.py"
 
 
 # -- cache keys -------------------------------------------------------------------------------------
@@ -90,10 +90,10 @@ def test_number_neutral_names_harness_modules():
     assert keys.NUMBER_NEUTRAL <= harness | {"lab", "sph.xla_cpu"}
     assert {"lab.io", "lab.runs", "lab.cli", "lab.animate"} <= keys.NUMBER_NEUTRAL
     # the studies' set-up and runs can change numbers: a TGV run's key covers them
-    studies = {"lab.study", "lab.tgv2d", "lab.tgv2d_runs"}
+    studies = {"lab.study"}
     assert not studies & keys.NUMBER_NEUTRAL
     tgv2d = ROOT / "experiments" / "tgv2d"
-    assert studies | {"sph.cases.tgv", "sph.relax"} <= set(keys.code_modules([tgv2d / "settings.py", tgv2d / "run.py"]))
+    assert studies | {"sph.cases.tgv", "sph.relax"} <= set(keys.code_modules([tgv2d / "study.py"]))
 
 
 def test_no_study_imports_another():
@@ -237,7 +237,8 @@ def test_copied_experiment_folder_runs_unchanged(tmp_path):
                               methods=[{"name": "tvf", "effects": {"tvf": True}}],
                               relaxation={"steps": 20, "quench_every": 10})
     results = tmp_path / "results"
-    env_cmd = [sys.executable, str(study / "run.py"), "--profile", "smoke", "--results", str(results), "--no-progress"]
+    env_cmd = [sys.executable, "-m", "lab.experiment", str(study), "--profile", "smoke", "--results", str(results),
+               "--no-progress"]
     subprocess.run(env_cmd, check=True, cwd=tmp_path, capture_output=True, text=True)
     table = pd.read_csv(results / "my_study" / "metrics.csv")
     assert list(table["method"]) == ["tvf"] and table["n_particles"].tolist() == [100]

@@ -1,6 +1,7 @@
-"""Metrics of the dam-break runs, from their traj.h5 files, against the experiments.
+"""What a dam-break run measures, from its trajectory, against the experiments (the harness's analysis
+module, lab.experiment: editing it re-evaluates the runs, never re-runs them).
 
-Per run (every column) it writes `series.csv` next to traj.h5, one row per frame:
+Per run (every column), `series`, one row per frame:
 
   t          simulation time = t sqrt(g/H) (g = H = 1)
   p_sensor   p / (rho g H) at the sensor on the inner face of the right wall at height sensor_height H:
@@ -14,7 +15,7 @@ Per run (every column) it writes `series.csv` next to traj.h5, one row per frame
   density_error  max |rho/rho_ref - 1| over fluid particles (frame diagnostic of the run)
   n_outside  fluid particles more than dx/2 beyond a wall face (outside the tank interior)
 
-and one row per run into results/<profile>/dambreak2d/metrics.csv:
+and its row of results/<profile>/dambreak2d/metrics.csv (`metrics`):
 
   n_fluid, n_particles, n_steps, dt, t_end, write_every, n_frames, wall_s (solve, compile excluded),
   compile_s, ms_per_step, other_load (cores of other work while it was timed), n_reallocations,
@@ -35,25 +36,24 @@ and one row per run into results/<profile>/dambreak2d/metrics.csv:
                                           and that error: Martin & Moyce's clock starts with the
                                           release of the column, whose gate takes a finite time to
                                           clear it (README: why the raw front runs ahead)
-
-    python experiments/dambreak2d/evaluate.py --profile smoke [--results results/smoke]
 """
-import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 import sph
-from lab import io, record, tables
+from lab import record as records
+from lab.protocol import Table
 from sph.kernels import make_kernel
-try:
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import settings as S
+from sph.precision import resolve
 
-BUCHNER = S.REFS / "dambreak_pressure_buchner_2002.csv"
-MM_FRONT = S.REFS / "dambreak_front_martin_moyce_1952.csv"
-MM_HEIGHT = S.REFS / "dambreak_height_martin_moyce_1952.csv"
+TARGET = "fig8"
+TABLE = Table(rows="metrics")
+REFS = Path(__file__).resolve().parents[2] / "validation_refs"
+BUCHNER = REFS / "dambreak_pressure_buchner_2002.csv"
+MM_FRONT = REFS / "dambreak_front_martin_moyce_1952.csv"
+MM_HEIGHT = REFS / "dambreak_height_martin_moyce_1952.csv"
 
 
 def load_ref(path) -> tuple[np.ndarray, np.ndarray]:
@@ -65,9 +65,12 @@ def load_ref(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 # -- per-frame quantities -------------------------------------------------------------------------
-def sensor_pressure(pos, p, rho, mass, fluid, point, kernel, wet_threshold: float, rho_ref: float = 1.0) -> np.ndarray:
+def sensor_pressure(pos, p, rho, mass, fluid, point, kernel, wet_threshold: float, rho_ref: float = 1.0,
+                    dtype: str = "float64") -> np.ndarray:
     """(T,) Shepard-interpolated fluid pressure at `point` for every frame (0 where dry). `rho`
-    (T, N) may be None (density not kept): the volumes are then m / rho_ref."""
+    (T, N) may be None (density not kept): the volumes are then m / rho_ref. The kernel is evaluated
+    in `dtype` (the run's precision), whatever JAX's x64 flag was before."""
+    resolve(dtype)
     out = np.zeros(pos.shape[0])
     for k in range(pos.shape[0]):
         d = np.linalg.norm(pos[k][fluid] - point, axis=1)
@@ -75,7 +78,7 @@ def sensor_pressure(pos, p, rho, mass, fluid, point, kernel, wet_threshold: floa
         if not near.any():
             continue
         vol = mass[fluid][near] / (rho[k][fluid][near] if rho is not None else rho_ref)
-        w = vol * np.asarray(kernel.w(d[near]))
+        w = vol * np.asarray(kernel.w(d[near].astype(dtype)))
         total = w.sum()
         if total >= wet_threshold:
             out[k] = float(np.sum(w * p[k][fluid][near]) / total)
@@ -125,7 +128,7 @@ def moving_average(t, y, window: float) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)
 
 
-def pressure_metrics(exp: "S.Experiment", t, p) -> dict:
+def pressure_metrics(exp, t, p) -> dict:
     """First peak (raw and smoothed) and RMS deviation of the sensor history against Buchner."""
     t_ref, p_ref = load_ref(BUCHNER)
     rta, rtp, rpp = first_peak(t_ref, p_ref, exp.peak_threshold, exp.peak_window)
@@ -141,7 +144,7 @@ def pressure_metrics(exp: "S.Experiment", t, p) -> dict:
     return row
 
 
-def front_metrics(exp: "S.Experiment", t, front, height) -> dict:
+def front_metrics(exp, t, front, height) -> dict:
     tf, xf = load_ref(MM_FRONT)
     sel = (tf <= exp.front_t_max) & (tf <= t[-1])
     rel = np.abs(np.interp(tf[sel], t, front) / xf[sel] - 1.0)
@@ -161,7 +164,7 @@ def front_metrics(exp: "S.Experiment", t, front, height) -> dict:
 
 
 # -- one run --------------------------------------------------------------------------------------
-def series(exp: "S.Experiment", column: "S.Column", tr: dict) -> tuple[pd.DataFrame, int]:
+def series(exp, column, tr: dict) -> tuple[pd.DataFrame, int]:
     """Per-frame quantities of one run (see module doc) and the number of fluid particles that left
     the tank interior in any frame."""
     pos = tr["position"]
@@ -172,7 +175,7 @@ def series(exp: "S.Experiment", column: "S.Column", tr: dict) -> tuple[pd.DataFr
     point = np.array([off + exp.tank.length, off + exp.sensor_height * column.height])
     p_scale = exp.fluid.rho_ref * exp.g * column.height
     p_s = sensor_pressure(pos, tr["pressure"], tr.get("density"), mass, fluid, point, kernel,
-                          exp.wet_threshold, exp.fluid.rho_ref) / p_scale
+                          exp.wet_threshold, exp.fluid.rho_ref, exp.numerics.dtype) / p_scale
     front, h = front_and_height(pos, fluid, off, dx, exp.height_band)
     out = outside_tank(pos, fluid, off, dx, exp.tank.length, exp.tank.height)
     return pd.DataFrame({"t": tr["time"], "p_sensor": p_s,
@@ -182,20 +185,16 @@ def series(exp: "S.Experiment", column: "S.Column", tr: dict) -> tuple[pd.DataFr
                          "n_outside": out.sum(axis=1)}), int(out.any(axis=0).sum())
 
 
-def evaluate_run(exp: "S.Experiment", column: "S.Column", results) -> dict:
-    """Metrics row of one finished run; writes its series.csv."""
-    folder = S.run_dir(results, column.name, exp.dx)
-    tr = io.read_trajectory(folder / "traj.h5")
-    meta = json.loads((folder / "metadata.json").read_text())
-    attrs = tr["attrs"]
+def metrics(run, tr: dict) -> dict:
+    """Metrics row of one finished run."""
+    exp, column, meta, attrs = run.settings, run.column, tr["metadata"], tr["attrs"]
     df, n_left = series(exp, column, tr)
-    df.to_csv(folder / "series.csv", index=False)
     n_steps = int(attrs["n_steps"])
     row = {"case": exp.case, "column": column.name, "width": column.width, "height": column.height,
            "dx": exp.dx, "dtype": exp.numerics.dtype, "walls": exp.effects.walls,
            "n_fluid": int(np.sum(tr["particle_type"] == sph.FLUID)), "n_particles": int(tr["particle_type"].size),
            "n_steps": n_steps, "dt": meta["dt"], "t_end": float(tr["time"][-1]), "write_every": meta["write_every"],
-           "n_frames": int(tr["time"].size), **record.timing(attrs, n_steps),
+           "n_frames": int(tr["time"].size), **records.timing(attrs, n_steps),
            "n_reallocations": int(attrs["n_reallocations"]),
            "density_error_max": float(np.max(tr["density_error"])), "n_left_tank": n_left}
     t = df["t"].to_numpy()
@@ -206,36 +205,9 @@ def evaluate_run(exp: "S.Experiment", column: "S.Column", results) -> dict:
     return row
 
 
-def evaluate_all(exp: "S.Experiment", results) -> pd.DataFrame:
-    """Metrics of every column of the profile -> results/<profile>/dambreak2d/metrics.csv."""
-    rows = [evaluate_run(exp, c, results) for c in exp.columns]
-    path = S.metrics_path(results)
-    table = tables.write_table(path, rows)
-    for c, r in zip(exp.columns, rows):
-        errors = {"density_max": r["density_error_max"]}
-        for k in ("p_rms_smooth", "front_relerr_max", "front_relerr_mean", "height_abserr_max"):
-            if k in r:
-                errors[k] = r[k]
-        folder = S.run_dir(results, c.name, exp.dx)
-        record.save_record(folder, record.record(folder, experiment=S.NAME, target="fig8", method=c.name, errors=errors))
-    for r in rows:
-        msg = (f"{r['column']} dx{r['dx']:g}: density error max {r['density_error_max']:.4f}, "
-               f"left tank {r['n_left_tank']}, wall {r['wall_s']:.1f} s")
-        if "p_peak" in r:
-            msg += (f"; first peak {r['p_peak']:.3f} at t {r['p_peak_t']:.3f} (Buchner {r['ref_p_peak']:.3f} at "
-                    f"{r['ref_p_peak_t']:.3f}), arrival {r['p_arrival_t']:.3f} ({r['ref_p_arrival_t']:.3f}), "
-                    f"RMS {r['p_rms']:.3f}; smoothed: peak {r['p_peak_smooth']:.3f} at {r['p_peak_t_smooth']:.3f}, "
-                    f"RMS {r['p_rms_smooth']:.3f}")
-        if "front_relerr_max" in r:
-            msg += (f"; front rel. err. max {r['front_relerr_max']:.3f} mean {r['front_relerr_mean']:.3f} "
-                    f"({r['front_n_ref']} points; {r['front_relerr_max_shifted']:.3f} with the clock "
-                    f"delayed by {r['front_t_shift']:.3f}), height abs. err. max {r['height_abserr_max']:.3f}")
-        print(msg, flush=True)
-    print(f"dambreak2d: metrics -> {path}", flush=True)
-    return table
-
-
-if __name__ == "__main__":
-    from lab.cli import experiment_main
-
-    experiment_main(evaluate_all, S.load, __doc__)
+def record(run, m: dict) -> dict:
+    errors = {"density_max": m["density_error_max"]}
+    for k in ("p_rms_smooth", "front_relerr_max", "front_relerr_mean", "height_abserr_max"):
+        if k in m:
+            errors[k] = m[k]
+    return {"errors": errors}

@@ -1,25 +1,24 @@
-"""Settings of the 3D Taylor-Green experiment: config.yaml -> frozen, validated dataclasses, paths,
-the reference file (read by analysis.py: sph.cases.tgv3d_reference), and the fingerprints that decide whether a cached result still matches its inputs.
-What it shares with the 2D study (methods, paths, cache keys, relaxed starts, runs) is
-lab.study's."""
+"""The 3D Taylor-Green study (JAX-SPH Fig. 9, Re = 100; the protocol is lab.experiment's): every
+(resolution, method) of a profile, `<method>_n<n>` (n^3 particles, dx = 2 pi / n), each method's effects
+on the analytical TGV velocity over the start of its resolution: the relaxed lattice (`start`, cached
+relaxed_n<n>.npy; the relaxation of tgv2d, sph.cases.tgv3d.relax) or the bare lattice. What a run
+measures against the JAX-Fluids reference is analysis.py (out of the runs' keys: the paper profile
+takes hours).
+"""
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import sph
 from sph.cases import tgv3d
-from lab.configtools import load_profile, require, require_agree, require_finite, to_mapping
-from lab.keys import digest
-from lab.layout import Study
+from sph.relax import Relaxation
+from lab.configtools import require, require_agree, require_finite
+from lab.protocol import Start
+from lab.runs import check_fits
 from lab.study import Method, check_methods, check_output
-from sph.relax import Relaxation  # noqa: F401  (the relaxation settings of this experiment)
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parents[1]
-NAME = HERE.name
-"""The experiment's name is its folder's: results go to results/<profile>/<NAME>."""
-CONFIG = HERE / "config.yaml"
-STUDY = Study(NAME, HERE)
+ROOT = Path(__file__).resolve().parents[2]
 STARTS = ("relaxed", "lattice")
 MIN_N_SIDE = 6
 """The periodic side 2 pi must be at least twice the quintic support 3 dx (sph.solver.check_resolution)."""
@@ -49,7 +48,7 @@ class Analysis:
 
 
 @dataclass(frozen=True)
-class Experiment:
+class Settings:
     """One profile of the experiment (see config.yaml for the meaning of each key)."""
 
     methods: tuple[Method, ...]
@@ -84,7 +83,7 @@ class Experiment:
         require(abs(self.re - self.reference_re) <= 1e-9 * self.reference_re, "material.eta",
                 f"Re = rho_ref u_ref / eta = {self.re:g} differs from reference_re = {self.reference_re:g}: the "
                 "runs would be compared with the wrong reference")
-        require(reference_path(self).is_file(), "reference", f"{reference_path(self)} does not exist")
+        require(self.reference_file.is_file(), "reference", f"{self.reference_file} does not exist")
         require_agree(self.analysis.dissipation_span < self.t_end / 2, ("analysis.dissipation_span", "t_end"),
                       f"must be below t_end / 2 = {self.t_end / 2:g} (the central difference needs frames on both "
                       f"sides), got {self.analysis.dissipation_span}")
@@ -101,60 +100,80 @@ class Experiment:
     def dx(self, n: int) -> float:
         return tgv3d.dx_for(n)
 
-    def method(self, name: str) -> Method:
-        return next(m for m in self.methods if m.name == name)
+    @property
+    def reference_file(self) -> Path:
+        """The reference file (`reference`, relative to the repository)."""
+        p = Path(self.reference)
+        return p if p.is_absolute() else ROOT / p
 
 
-def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
-    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
-    return load_profile(Experiment, path, profile, overrides)
+@dataclass(frozen=True)
+class Run:
+    """One method at n^3 particles: everything its numbers depend on (its cache key with the code and
+    its start's; `settings`, read by the analysis only, stays out of the key)."""
+
+    name: str
+    case: str
+    method: str
+    effects: sph.Effects
+    n_side: int
+    material: sph.Material
+    numerics: sph.Numerics
+    t_end: float
+    frames: int
+    keep: tuple[str, ...]
+    connectivity_radius_factor: float
+    start: str
+    relaxation: Optional[Relaxation]
+    settings: Settings = field(metadata={"key": False})
+
+    @property
+    def dx(self) -> float:
+        return tgv3d.dx_for(self.n_side)
+
+    @property
+    def re(self) -> float:
+        return self.material.rho_ref * self.material.u_ref / self.material.eta
 
 
-# -- reference ------------------------------------------------------------------------------------
-def reference_path(exp: Experiment) -> Path:
-    p = Path(exp.reference)
-    return p if p.is_absolute() else ROOT / p
+def run_name(method: str, n: int) -> str:
+    return f"{method}_n{n}"
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def n_tag(n: int) -> str:
-    return f"n{n}"
+def runs(s: Settings) -> list:
+    relaxation = s.relaxation if s.start == "relaxed" else None
+    return [Run(run_name(m.name, n), s.case, m.name, m.effects, n, s.material, s.numerics, s.t_end, s.frames, s.keep,
+                s.connectivity_radius_factor, s.start, relaxation, s)
+            for n in s.n_side for m in s.methods]
 
 
-def out_dir(results) -> Path:
-    """results/<profile>/<NAME> (tgv3d for this folder)."""
-    return STUDY.out_dir(results)
+def preflight(runs) -> None:
+    """Every resolution about to run against the available memory, before anything is relaxed or run."""
+    for r in {r.n_side: r for r in runs}.values():
+        n = r.n_side
+        check_fits(f"tgv3d at n = {n} ({n ** 3:,} particles)", n ** 3, 3, r.dx, r.numerics)
 
 
-def run_dir(results, method: str, n: int) -> Path:
-    return STUDY.run_dir(results, method, n_tag(n))
+def start(run: Run) -> Optional[Start]:
+    """The relaxed start of the run's resolution (sph.cases.tgv3d.relax, as tgv2d), shared by its
+    methods; None (the scene's lattice) for `start: lattice`."""
+    if run.start != "relaxed":
+        return None
+
+    def compute(progress):
+        return tgv3d.relax(run.dx, run.material, run.numerics, run.relaxation, progress, desc=f"relax n{run.n_side}")
+
+    return Start(f"n{run.n_side}", {"n_side": run.n_side, "material": run.material, "numerics": run.numerics,
+                                    "relaxation": run.relaxation}, compute,
+                 meta={"n_side": run.n_side, "dx": run.dx, "relaxation": dataclasses.asdict(run.relaxation)})
 
 
-def relaxed_path(results, n: int) -> Path:
-    return STUDY.relaxed_path(results, n_tag(n))
+def scene(run: Run, r=None):
+    return tgv3d.scene(run.dx, run.material, run.effects, r=r), run.numerics
 
 
-def metrics_path(results) -> Path:
-    return STUDY.metrics_path(results)
-
-
-# -- fingerprints ---------------------------------------------------------------------------------
-RELAX_MODULES = ("sph.cases.tgv3d",)
-"""The code of a relaxed start besides the solver's (the 3D TGV scene and its relaxation, sph.cases.relaxed)."""
-
-
-def relax_fingerprint(exp: Experiment, n: int) -> str:
-    """The relaxed start of n^3 particles: its settings and the code that relaxes (the solver's, the
-    case's relaxation and scene, settings.py), without docstrings or comments."""
-    return digest({"n_side": n, "material": to_mapping(exp.material), "numerics": to_mapping(exp.numerics),
-                   "relaxation": to_mapping(exp.relaxation), "code": STUDY.code_hash(modules=RELAX_MODULES)})
-
-
-def run_fingerprint(exp: Experiment, method: Method, n: int) -> str:
-    """The run of `method` at n^3 particles: its settings, its start and the code of the solver, of
-    settings.py and run.py and of the sph modules they import (analysis.py, which only evaluates, is
-    not part of it)."""
-    start = relax_fingerprint(exp, n) if exp.start == "relaxed" else "lattice"
-    return digest({"case": exp.case, "n_side": n, "method": to_mapping(method), "material": to_mapping(exp.material),
-                   "numerics": to_mapping(exp.numerics), "t_end": exp.t_end, "frames": exp.frames,
-                   "keep": list(exp.keep), "start": start, "code": STUDY.code_hash("run.py")})
+def run_options(run: Run) -> dict:
+    return {"case": run.case, "keep": run.keep, "connectivity_radius_factor": run.connectivity_radius_factor,
+            "u_limit": run.numerics.c_ref_factor * run.material.u_ref,
+            "metadata": {"re": run.re, "n_side": run.n_side, "start": run.start,
+                         "relaxation": dataclasses.asdict(run.relaxation) if run.relaxation else None}}

@@ -1,23 +1,20 @@
-"""Settings of the 2D lid-driven cavity experiment: config.yaml -> frozen, validated dataclasses,
-result paths, and the fingerprint that decides whether a stored run still matches its inputs.
-
-The fingerprint covers only what changes a simulation (the solver inputs of the profile, the core
-`sph/` and `run.py`), not the post-processing (`analysis` settings, `analysis.py`, plot scripts):
-editing those re-evaluates the stored runs without re-running them.
+"""The 2D lid-driven cavity (JAX-SPH Figs. 6-7, Re = 100, against Ghia et al. 1982; the protocol is
+lab.experiment's): every (dx, method) of a profile, `<method>_dx<dx>`, from the Cartesian lattice at rest
+(sph.cases.ldc: three layers of wall particles, the top ones moving at the lid speed) to t_end. With
+`lid_corners: fixed` (the validated set-up) the wall particles of the top layers beyond the side walls
+are fixed walls, so the lid spans exactly the cavity width; `moving` is JAX-SPH's full-width lid (why:
+sph.cases.ldc.LID_CORNERS). Each figure has its own runs (its dx): a run's `groups` are the figures
+that show it (make fig6 runs only Fig. 6's). What a run measures (centreline profiles against Ghia) is
+analysis.py, out of the runs' keys: editing it re-evaluates the runs without re-running them.
 """
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Optional
 
 import sph
 from sph.cases import ldc
-from lab.configtools import from_mapping, load_profile, merge, require, require_agree, require_finite, to_mapping
-from lab.keys import code_fingerprint, digest
+from lab.configtools import from_mapping, merge, require, require_agree, require_finite, to_mapping
+from lab.layout import dx_tag
+from lab.runs import check_fits
 
-HERE = Path(__file__).resolve().parent
-NAME = HERE.name
-ROOT = HERE.parents[1]
-CONFIG = HERE / "config.yaml"
 KEEPABLE = ("velocity", "momentum_velocity", "density", "pressure")
 FIGURES = ("fig6", "fig7")
 VELOCITIES = ("transport", "momentum")
@@ -68,7 +65,7 @@ class Analysis:
 
 
 @dataclass(frozen=True)
-class Experiment:
+class Settings:
     """One profile of the experiment (see config.yaml for the meaning of each key)."""
 
     methods: tuple[Method, ...]
@@ -151,49 +148,55 @@ class Experiment:
         return from_mapping(sph.Numerics, merge(to_mapping(self.numerics), m.numerics), f"{where or m.name}.numerics")
 
 
-def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
-    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
-    return load_profile(Experiment, path, profile, overrides)
+@dataclass(frozen=True)
+class Run:
+    """One method at one spacing: everything its trajectory depends on (its cache key with the code);
+    `groups` (the figures that show it) and `settings` (the analysis's) stay out of the key."""
+
+    name: str
+    case: str
+    method: str
+    effects: sph.Effects
+    numerics: sph.Numerics
+    dx: float
+    material: sph.Material
+    lid_velocity: float
+    wall_layers: int
+    lid_corners: str
+    t_end: float
+    frames: int
+    keep: tuple[str, ...]
+    connectivity_radius_factor: float
+    groups: tuple[str, ...] = field(default=(), metadata={"key": False})
+    settings: Settings = field(default=None, metadata={"key": False})
+
+    @property
+    def re(self) -> float:
+        return self.material.rho_ref * self.lid_velocity / self.material.eta
 
 
-# -- paths ----------------------------------------------------------------------------------------
-def dx_tag(dx: float) -> str:
-    return f"dx{dx:g}"
+def runs(s: Settings) -> list:
+    """Every (dx, method), coarsest dx first, methods in config order."""
+    return [Run(f"{m.name}_{dx_tag(dx)}", s.case, m.name, s.effects(m), s.numerics_of(m), dx, s.material,
+                s.lid_velocity, s.wall_layers, s.lid_corners, s.t_end, s.frames, s.keep, s.connectivity_radius_factor,
+                tuple(f for f, d in s.figures.items() if abs(float(d) - dx) < 1e-12), s)
+            for dx in s.dx for m in s.methods]
 
 
-def out_dir(results) -> Path:
-    """results/<profile>/<NAME> (ldc2d for this folder)."""
-    return Path(results) / NAME
+def preflight(runs) -> None:
+    """Every run about to start against the available memory, before anything is built."""
+    for r in runs:
+        check_fits(f"ldc2d {r.method} at dx = {r.dx:g}", (round(1.0 / r.dx) + 2 * r.wall_layers) ** 2, 2, r.dx,
+                   r.numerics)
 
 
-def run_dir(results, method: str, dx: float) -> Path:
-    return out_dir(results) / f"{method}_{dx_tag(dx)}"
+def scene(run: Run):
+    return ldc.scene(run.dx, run.material, run.effects, layers=run.wall_layers, lid_velocity=run.lid_velocity,
+                     lid_corners=run.lid_corners), run.numerics
 
 
-def metrics_path(results) -> Path:
-    return out_dir(results) / "metrics.csv"
-
-
-def profiles_path(results, method: str, dx: float) -> Path:
-    return run_dir(results, method, dx) / "profiles.npz"
-
-
-# -- fingerprints ---------------------------------------------------------------------------------
-def code_hash() -> str:
-    """Hash of the code that makes a trajectory: settings.py, run.py and the sph modules they and the
-    solver import (lab.keys.code_fingerprint; docstrings and comments do not count)."""
-    return code_fingerprint([HERE / "settings.py", HERE / "run.py"])
-
-
-def settings_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
-    """Digest of the solver inputs of one run (no code)."""
-    return digest({"case": exp.case, "dx": dx, "method": method.name,
-                    "effects": to_mapping(exp.effects(method)), "numerics": to_mapping(exp.numerics_of(method)),
-                    "material": to_mapping(exp.material), "lid_velocity": exp.lid_velocity,
-                    "wall_layers": exp.wall_layers, "lid_corners": exp.lid_corners, "t_end": exp.t_end, "frames": exp.frames,
-                    "keep": list(exp.keep)})
-
-
-def run_fingerprint(exp: Experiment, method: Method, dx: float) -> str:
-    """Digest of the solver inputs and the code of one run (`code_hash`)."""
-    return digest({"settings": settings_fingerprint(exp, method, dx), "code": code_hash()})
+def run_options(run: Run) -> dict:
+    return {"case": run.case, "keep": run.keep, "connectivity_radius_factor": run.connectivity_radius_factor,
+            "u_limit": run.numerics.c_ref_factor * run.material.u_ref,
+            "metadata": {"re": run.re, "lid_velocity": run.lid_velocity, "wall_layers": run.wall_layers,
+                         "lid_corners": run.lid_corners, "cavity_offset": ldc.offset(run.dx, run.wall_layers)}}

@@ -1,20 +1,17 @@
-"""Settings of the 2D dam-break experiment: config.yaml -> frozen, validated dataclasses, paths, and
-the fingerprints that decide whether a cached result still matches its inputs."""
+"""The 2D dam break (Colagrossi & Landrini 2003; JAX-SPH Fig. 8; the protocol is lab.experiment's):
+one run per water column of the profile (`<column>_dx<dx>`), Riemann SPH in a closed tank, started
+hydrostatic (`initial_state`), a frame every `frame_dt`. What a run builds and what its numbers
+depend on lives here; what it measures against the experiments (the wall-pressure sensor, the surge
+front) is analysis.py, whose edits re-evaluate the runs without re-running them.
+"""
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Optional
 
 import sph
-from lab.configtools import load_profile, require, require_agree, require_finite, to_mapping
-from lab.keys import digest
-from lab.layout import Study, dx_tag
+from sph.cases import tank
+from lab.configtools import require, require_agree, require_finite, to_mapping
+from lab.layout import dx_tag
 
-HERE = Path(__file__).resolve().parent
-NAME = HERE.name
-ROOT = HERE.parents[1]
-CONFIG = HERE / "config.yaml"
-REFS = ROOT / "validation_refs"
 KEEPABLE = ("velocity", "density", "pressure")
 
 
@@ -64,7 +61,7 @@ class Fluid:
 
 
 @dataclass(frozen=True)
-class Experiment:
+class Settings:
     """One profile of the experiment (see config.yaml for the meaning of each key)."""
 
     columns: tuple[Column, ...]
@@ -150,27 +147,64 @@ class Experiment:
         return self.tank.layers * self.dx
 
 
-def load(profile: str, path=CONFIG, overrides: Optional[dict] = None) -> Experiment:
-    """Parse `profile` of config file `path`; `overrides` (a mapping) is merged over it last."""
-    return load_profile(Experiment, path, profile, overrides)
+@dataclass(frozen=True)
+class Run:
+    """One column: everything its trajectory depends on (the simulation settings, not the evaluation
+    keys: sensor, bands, figure; those come with `settings`, out of the key, so changing them only
+    re-evaluates)."""
+
+    name: str
+    column: Column
+    case: str
+    dx: float
+    tank: Tank
+    fluid: Fluid
+    effects: sph.Effects
+    numerics: sph.Numerics
+    hydrostatic_init: bool
+    frame_dt: float
+    keep: tuple[str, ...]
+    settings: Settings = field(metadata={"key": False})
+
+    @property
+    def t_end(self) -> float:
+        return self.column.t_end
+
+    @property
+    def method(self) -> str:
+        """The record's method: the column's name (the atlas's rows)."""
+        return self.column.name
 
 
-# -- paths and code key (lab.layout) -------------------------------------------------------
-STUDY = Study(NAME, HERE)
-"""results/<profile>/<NAME>/<column>_dx<dx>/ per run, metrics.csv beside them; the code key of
-settings.py and run.py with the sph modules they and the solver import."""
-out_dir, metrics_path = STUDY.out_dir, STUDY.metrics_path
+def runs(s: Settings) -> list:
+    return [Run(f"{c.name}_{dx_tag(s.dx)}", c, s.case, s.dx, s.tank, s.fluid, s.effects, s.numerics,
+                s.hydrostatic_init, s.frame_dt, s.keep, s) for c in s.columns]
 
 
-def run_dir(results, column: str, dx: float) -> Path:
-    return STUDY.run_dir(results, column, dx_tag(dx))
+def scene(run: Run):
+    s, c = run.settings, run.column
+    sc = tank.scene(run.dx, s.material(c), run.effects, width=c.width, height=c.height, tank_length=run.tank.length,
+                    tank_height=run.tank.height, layers=run.tank.layers, name=f"dambreak_{c.name}")
+    return sc, run.numerics
 
 
-# -- fingerprints ---------------------------------------------------------------------------------
-def run_fingerprint(exp: Experiment, column: Column) -> str:
-    """What a trajectory depends on: the simulation settings and the code, not the evaluation keys
-    (sensor, bands, figure), so changing those only re-evaluates."""
-    return digest({"case": exp.case, "dx": exp.dx, "column": to_mapping(column), "tank": to_mapping(exp.tank),
-                    "fluid": to_mapping(exp.fluid), "effects": to_mapping(exp.effects),
-                    "numerics": to_mapping(exp.numerics), "hydrostatic_init": exp.hydrostatic_init,
-                    "frame_dt": exp.frame_dt, "keep": list(exp.keep), "code": STUDY.code_hash("run.py")})
+def initial_state(run: Run, solver: sph.Solver):
+    """(state, nbrs) at t = 0: the column at rest, with the hydrostatic pressure
+    p = rho_ref g (H - y) and the density of the equation of state at that pressure when
+    `hydrostatic_init` (otherwise rho = rho_ref, p = 0 and the column first settles under gravity,
+    ringing with acoustic waves). The stored initial acceleration is that of the uniform state; it
+    enters only the first step (an error of dt g in the velocity)."""
+    s = run.settings
+    state, nbrs = solver.init_fn()
+    if not run.hydrostatic_init:
+        return state, nbrs
+    return tank.hydrostatic(state, solver.eos, run.fluid.rho_ref, s.g, s.offset + run.column.height), nbrs
+
+
+def run_options(run: Run) -> dict:
+    s = run.settings
+    return {"case": run.case, "method": "riemann" if run.effects.riemann else "sph", "frame_dt": run.frame_dt,
+            "keep": run.keep, "connectivity_radius_factor": s.connectivity_radius_factor,
+            "u_limit": run.numerics.c_ref_factor * s.material(run.column).u_ref,
+            "metadata": {"column": to_mapping(run.column), "tank": to_mapping(run.tank), "tank_offset": s.offset,
+                         "g": s.g, "hydrostatic_init": run.hydrostatic_init}}

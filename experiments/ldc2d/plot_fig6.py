@@ -1,14 +1,14 @@
-"""Figs. 6 and 7: 2D lid-driven cavity at Re = 100. Top: velocity magnitude of the particles at
-t_end, one panel per method. Bottom: centreline profiles u(y) at x = 0.5 and v(x) at y = 0.5 of each
-method (SPH interpolation averaged over the last frames, analysis.py) against Ghia et al. (1982).
+"""Fig. 6: 2D lid-driven cavity at Re = 100 at figures.fig6's dx (paper: 0.02). Top: velocity magnitude of
+the particles at t_end, one panel per method. Bottom: centreline profiles u(y) at x = 0.5 and v(x) at
+y = 0.5 of each method (SPH interpolation averaged over the last frames, analysis.py) against Ghia et
+al. (1982). plot_fig7.py draws Fig. 7 (figures.fig7's dx, paper 0.01) with this script's `figure`.
 
-Fig. 6 uses the runs at figures.fig6's dx (paper: 0.02), Fig. 7 those at figures.fig7's (0.01).
-Reads results/<profile>/ldc2d/<method>_dx<dx>/{traj.h5,profiles.npz} (re-evaluating
-the runs first, so a changed `analysis` setting takes effect); writes results/<profile>/<fig>/
-<fig>.{png,pdf} and <fig>/metrics.csv (the metrics rows of that dx); with --gif PATH only an animation
-of one method's run of that figure (--method, default tvf; lab.animate).
+Reads the current runs of the figure (lab.experiment: refused, naming them, when one is missing or
+stale), evaluated by analysis.py; writes <out>/fig6.{png,pdf} and <out>/metrics.csv (the metrics rows
+of that dx; make: results/<profile>/fig6/); with --gif PATH only an animation of the TVF run of the
+figure (else its first method's; lab.animate).
 
-    python experiments/ldc2d/plot.py --fig fig6 --profile smoke [--results results/smoke] [--gif fig6.gif]
+    python experiments/ldc2d/plot_fig6.py --profile smoke [--results results/smoke] [--out DIR] [--gif fig6.gif]
 """
 from pathlib import Path
 
@@ -20,34 +20,30 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from sph.cases import ldc_reference  # noqa: E402
-from lab import animate, io  # noqa: E402
 from sph.state import FLUID, MOVING_WALL  # noqa: E402
-try:  # noqa: E402
-    from . import analysis
-    from . import run as R
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import analysis
-    import run as R
-    import settings as S
+from lab.experiment import plot_main  # noqa: E402
+from lab.io import read_metadata, read_trajectory  # noqa: E402
 
 COLORS = {"sph": "tab:blue", "tvf": "tab:orange", "riemann": "tab:green"}
 LABELS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
 
 
-def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
+def figure_runs(experiment, fig_name: str) -> list:
+    """The runs `fig_name` shows (its dx), one per method, refused when the profile has no such figure."""
+    exp = experiment.settings
     if fig_name not in exp.figures:
         raise SystemExit(f"profile has no {fig_name} (figures: {list(exp.figures)})")
+    return [r for r in experiment.runs if fig_name in r.groups]
+
+
+def figure(experiment, out, fig_name: str) -> Path:
+    """Fig. 6 or 7 (`fig_name`) of the current runs at its dx into `out`, with its metrics.csv (the rows of
+    exactly its runs, as evaluated)."""
+    exp = experiment.settings
     dx = float(exp.figures[fig_name])
-    rows = []
-    for m in exp.methods:
-        traj = S.run_dir(results, m.name, dx) / "traj.h5"
-        if not io.trajectory_status(traj)["complete"]:
-            raise SystemExit(f"{fig_name}: run {m.name} {S.dx_tag(dx)} is not complete ({traj}); run "
-                             f"experiments/ldc2d/run.py --fig {fig_name} first")
-        rows.append(R.evaluate(exp, m.name, dx, results))  # cached beside the run
-    out = Path(results) / fig_name
-    out.mkdir(parents=True, exist_ok=True)
+    runs = figure_runs(experiment, fig_name)
+    evaluated = [experiment.analysis.evaluate(exp, r.method, r.dx, experiment.current(r).folder) for r in runs]
+    rows, lines = [e[0] for e in evaluated], [e[1] for e in evaluated]
 
     n = len(exp.methods)
     fig = plt.figure(figsize=(4.0 * n, 8.2), constrained_layout=True)
@@ -57,9 +53,10 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
     ax_v = fig.add_subplot(gs[1, n:])
     vmax = exp.lid_velocity
     scatters = []
-    for ax, m, row in zip(field_axes, exp.methods, rows):
-        tr = io.read_trajectory(S.run_dir(results, m.name, dx) / "traj.h5")
-        meta_off = analysis.Interpolator(S.run_dir(results, m.name, dx), exp.analysis).offset
+    for ax, m, run in zip(field_axes, exp.methods, runs):
+        spec = experiment.current(run)
+        tr = read_trajectory(spec.traj)
+        meta_off = float(read_metadata(spec.meta_path)["cavity_offset"])
         r = tr["position"][-1] - meta_off
         speed = np.linalg.norm(tr["velocity"][-1], axis=1)
         tag = tr["particle_type"]
@@ -77,8 +74,7 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
     xg, vg = ldc_reference.ghia("v", exp.ghia_re)
     ax_u.plot(ug, yg, "ko", ms=5, label=f"Ghia et al. (1982), Re = {exp.ghia_re}")
     ax_v.plot(xg, vg, "ks", ms=5, label=f"Ghia et al. (1982), Re = {exp.ghia_re}")
-    for m, row in zip(exp.methods, rows):
-        p = np.load(S.profiles_path(results, m.name, dx))
+    for m, row, p in zip(exp.methods, rows, lines):
         c = COLORS.get(m.name)
         ax_u.plot(p["u"], p["y"], color=c, lw=1.6,
                   label=f"{LABELS.get(m.name, m.name)} (RMS dev. {row['u_rms']:.3f})")
@@ -101,31 +97,21 @@ def plot(exp: "S.Experiment", results, fig_name: str) -> Path:
         fig.savefig(out / f"{fig_name}.{ext}", dpi=150)
     plt.close(fig)
     pd.DataFrame(rows).to_csv(out / "metrics.csv", index=False)  # exactly this figure's runs, as evaluated
-    print(f"{fig_name} -> {out / (fig_name + '.png')}, {out / 'metrics.csv'}")
     for row in rows:
         print(f"  {row['method']:8s} dx {dx:g}: RMS dev. u {row['u_rms']:.4f} v {row['v_rms']:.4f}, "
               f"max dev. u {row['u_maxdev']:.4f} v {row['v_maxdev']:.4f}")
     return out / f"{fig_name}.png"
 
 
-def options(ap):
-    ap.add_argument("--fig", choices=S.FIGURES, required=True)
-    ap.add_argument("--gif", default=None, help="write only an animation of one run of the figure to this file")
-    ap.add_argument("--method", default="tvf", help="the method animated with --gif (default tvf)")
+def plot(experiment, out):
+    return figure(experiment, out, "fig6")
 
 
-def main(args):
-    exp, results = S.load(args.profile), args.results
-    if args.gif:
-        names = [m.name for m in exp.methods]
-        if args.method not in names:
-            raise SystemExit(f"--method {args.method}: not a method of this profile ({names})")
-        animate.render(S.run_dir(results, args.method, float(exp.figures[args.fig])) / "traj.h5", args.gif)
-    else:
-        plot(exp, results, args.fig)
+def gif_run(experiment, fig_name: str = "fig6"):
+    """The run the figure's animation shows: its TVF run, else its first method's."""
+    runs = figure_runs(experiment, fig_name)
+    return next((r for r in runs if r.method == "tvf"), runs[0])
 
 
 if __name__ == "__main__":
-    from lab.cli import profile_main
-
-    profile_main(main, __doc__, options)
+    plot_main(plot, __file__, __doc__, gif=gif_run)
