@@ -67,6 +67,12 @@ def test_every_run_is_made_and_tabled(study):
     assert "Equal cost: GNS trained" in md and "paper's solver only" in md
     for name, r in rows.items():   # at smoke every run stays finite (the paper's coarse L = 1 runs diverge)
         assert int(r["n_windows"]) == 1, r
+        if name == "gns_equal_cost" and r["finite"] != "True":
+            # its step budget comes from timings (35-41 steps measured on this machine): a 4-wide GNS
+            # trained that long diverged in its 20-step rollout in 2 of 4 runs (MSE_20 7e-4 when it did
+            # not), a property of the toy network; the row must then say so, compared as diverged
+            assert r["verdict"] == "higher (diverged)" and float(rows["solver_L3"]["mse20"]) > 0, r
+            continue
         assert r["finite"] == "True" and float(r["mse20"]) > 0, r
     # a floor of sense: the solver beats particles that do not move (measured 2.9e-7 against 0.022)
     assert float(rows["frozen"]["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])
