@@ -67,6 +67,10 @@ def plot_fig8(experiment, out):
         ax.set_title(rf"$t\sqrt{{g/H}}$ = {t[k]:.2f}{late}", fontsize=10)
         ax.set(xlim=(-exp.offset, exp.tank.length + exp.offset), ylim=(-exp.offset, exp.tank.height + exp.offset),
                aspect="equal", xticks=[0, 1, 2, 3, 4, 5], yticks=[0, 1, 2])
+    for ax in axes[-1, :]:
+        ax.set_xlabel("x / H")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y / H")
     for ax in list(axes.flat)[len(times):]:
         ax.axis("off")
     fig.colorbar(sc, ax=axes, shrink=0.8, label=r"$p/(\rho g H)$")

@@ -59,7 +59,7 @@ def plot(exp, out):
         sc = ax.scatter(r[:, 0], r[:, 1], c=theta, s=size, marker="s", linewidths=0, cmap=CMAP, vmin=0.0, vmax=1.0)
         rw = data["position"][k][~fluid]
         ax.scatter(rw[:, 0], rw[:, 1], s=size * 0.08, c="w", marker=".", linewidths=0, alpha=0.5)
-        ax.set(xlim=(0, box[0]), ylim=(0, box[1]), aspect="equal", yticks=[])
+        ax.set(xlim=(0, box[0]), ylim=(0, box[1]), aspect="equal", yticks=[0, box[1]], ylabel="y")
         ax.set_title(f"t = {data['time'][k]:.3g}", fontsize=9, loc="left", pad=2)
     axes[-1, 0].set_xlabel("x")
     fig.colorbar(sc, ax=axes[:, 0].tolist(), label=r"$\theta = (T - T_{ref})/(T_{hot} - T_{ref})$",
