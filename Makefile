@@ -49,6 +49,7 @@ help:
 	@echo "make sitl-divergence [PROFILE=smoke] where the coarse solver and SitL rollouts break, step by step"
 	@echo "make droplet [PROFILE=smoke]    surface tension: a 2D droplet at rest against Laplace's law (beyond the paper)"
 	@echo "make <folder>                   any experiments/<folder> with a study.py (the protocol, lab.experiment): its runs and figures"
+	@echo "  ... DEVICES=N                    (Figs. 4-10 and <folder>) each run's steps on N devices (a CPU is split into N)"
 	@echo "make bench                      particle-steps per second, TGV 2D; cost of declared effects;\n                                 memory and time of gradients through 100-5000 steps"
 	@echo "make bench-speed | bench-peer | scaling   TGV ms/step 2D/3D; against JAX-SPH 0.1.0; against particle count"
 	@echo "make test                       test suite"
@@ -123,9 +124,9 @@ restore: | $(VENV)
 readme-tables: | $(VENV)
 	$(PY) -m report.readme_tables --snapshot docs/results/$(README_PROFILE)
 
-# the folders of the protocol (lab.experiment): every experiments/*/study.py, or those given (a copy elsewhere,
+# the folders of the protocol (lab.experiment): every experiments/*/study.py, gradcheck and inverse, or those given (a copy elsewhere,
 # PROTOCOL_DIRS=/tmp/my_study); each folder's rules.mk, where it has one, says what is its own (below)
-PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py))
+PROTOCOL_DIRS ?= $(patsubst %/study.py,%,$(wildcard experiments/*/study.py gradcheck/study.py inverse/study.py))
 include $(sort $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rules.mk sitl/rules.mk bench/rules.mk \
                           $(addsuffix /rules.mk,$(PROTOCOL_DIRS))))
 
@@ -142,6 +143,9 @@ include $(sort $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rule
 #   GROUP.<d>.<name>   the group of runs the figure shows, one of GROUPS.<d> (the groups of the folder's runs,
 #                      lab.experiment --group): each group has its own run step and stamp <group>_runs.done,
 #                      so making one figure runs only its runs (default: every run, runs.done)
+# DEVICES=N: every protocol run's steps on N devices (sph.parallel; a CPU-only host is split into N XLA devices),
+# equal to one device's numbers to round-off, so no run re-keys; the run's record states its device count
+PROTOCOL_DEVICES = $(if $(DEVICES),--devices $(DEVICES))
 protocol_figdir = $(or $(FIGDIR.$(1).$(2)),$(RESULTS)/$(notdir $(1)))
 protocol_outs = $(addprefix $(call protocol_figdir,$(1),$(2))/,$(2).png $(2).pdf $(EXTRA.$(1).$(2)))
 protocol_stamp = $(RESULTS)/$(notdir $(1))/$(if $(GROUP.$(1).$(2)),$(GROUP.$(1).$(2))_)runs.done
@@ -151,7 +155,7 @@ define newline
 endef
 define protocol_rules
 $(RESULTS)/$(notdir $(1))/runs.done: FORCE | $(VENV)
-	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS)
+	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
 $(foreach g,$(GROUPS.$(1)),$(call protocol_group,$(1),$(g))$(newline))
 $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p))))$(newline))
 .PHONY: $(notdir $(1))
@@ -159,7 +163,7 @@ $(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_figdir,$(
 endef
 define protocol_group
 $(RESULTS)/$(notdir $(1))/$(2)_runs.done: FORCE | $(VENV)
-	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --group $(2) --profile $$(PROFILE) --results $$(RESULTS)
+	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --group $(2) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
 endef
 define protocol_plot
 $(call protocol_outs,$(1),$(3)): OUTS := $(call protocol_outs,$(1),$(3))

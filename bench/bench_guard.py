@@ -1,6 +1,6 @@
 """Benchmark: what the step guard costs (a script, not a test; issue 13 asks for < 3 % of a step).
 
-The guard (`sph.diagnostics.StepGuard`, on by default in every run) refuses a step after which a
+The guard (`sph.guard.StepGuard`, on by default in every run) refuses a step after which a
 fluid particle is outside a non-periodic side of the domain, moves faster than the speed limit or
 has a non-finite position or velocity. Here the same compiled chunk of steps is timed with and
 without it, interleaved (A, B, A, B, ...) so that a busy machine slows both alike, on a periodic
@@ -91,6 +91,6 @@ def main():
 
 
 if __name__ == "__main__":
-    from lab.cli import main_guard
+    from lab.cli import script_main
 
-    main_guard(main)  # sets XLA's CPU defaults first
+    script_main(main)  # sets XLA's CPU defaults first

@@ -56,6 +56,6 @@ def main():
 
 
 if __name__ == "__main__":
-    from lab.cli import main_guard
+    from lab.cli import script_main
 
-    main_guard(main)  # sets XLA's CPU defaults first
+    script_main(main)  # sets XLA's CPU defaults first

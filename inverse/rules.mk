@@ -1,23 +1,14 @@
-# Inverse problem, paper Fig. 2 (inverse/README.md).
-# Included by the top-level Makefile, which defines PROFILE, PY, RESULTS, VENV and FORCE. Run steps
-# always call their run script (its cache decides what re-runs, see lab.runs) through lab.stamp, whose
-# stamp changes only when an output changed.
-# The optimizations (one stamp for all) depend on the config, the scripts they use and the core;
-# run.py itself skips when its outputs were made from the same inputs. The figure depends on the
-# optimization results and its plot script only, so editing plot.py only re-plots.
-INVERSE      := inverse
-INVERSE_RUNS := $(RESULTS)/inverse/runs.done
-FIG2_OUT     := $(addprefix $(RESULTS)/fig2/,fig2.png fig2.pdf metrics.csv summary.csv)
+# Inverse problem, paper Fig. 2 (inverse/README.md): `make fig2`, `make inverse` [PROFILE=smoke].
+# The optimizations (study.py: one run per case, start and optimizer, each computed and cached by the
+# harness, lab.experiment `compute`; the table summary.csv) and the figure (plot_fig2.py) are the
+# protocol's rules (Makefile: protocol_rules): `make inverse` is the folder's target (its runs and its
+# figure, re-plotted only when a run changed). What is this folder's own: the figure's folder
+# (<results>/fig2), the tables the plot writes beside it and the target name.
+_dir := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
+FIGDIR.$(_dir).fig2 := $(RESULTS)/fig2
+EXTRA.$(_dir).fig2 := metrics.csv summary.csv
 
-.PHONY: fig2 inverse
-
-$(INVERSE_RUNS): FORCE | $(VENV)
-	$(PY) -m lab.stamp $@ $(dir $@) -- $(PY) $(INVERSE)/run.py --profile $(PROFILE) --results $(RESULTS)
-
-# the optimizations and their metrics only
-inverse: $(INVERSE_RUNS)
-
-fig2: $(FIG2_OUT)
-$(FIG2_OUT): OUTS := $(FIG2_OUT)
-$(FIG2_OUT) &: $(INVERSE_RUNS) $(INVERSE)/plot.py lab/figures.py FORCE | $(VENV)
-	$(DELIVER) $(PY) $(INVERSE)/plot.py --profile $(PROFILE) --results $(RESULTS)
+ifeq ($(notdir $(_dir)),inverse)
+.PHONY: fig2
+fig2: $(RESULTS)/fig2/fig2.png
+endif

@@ -17,9 +17,13 @@
   study.py         a study's methods (named solver variants) and the checks of its settings
   cost.py          the cost of an experiment's runs from a short run of each, without running them
   lock.py, atomic.py, other_load.py   one writer per folder, atomic writes, the load beside a timing
+  interrupt.py     Ctrl-C never lost in a garbage-collector callback (installed here, before JAX)
 XLA's CPU flag is the core's (`sph.set_cpu_defaults`); the entry points (`cli.main_guard`) set it.
 
 Imports go from here to the core only (`sph.errors`, `sph.simulate`, ...). Which of these modules can
 change a run's numbers, and so enter its cache key, is `keys.NUMBER_NEUTRAL`'s complement (the study
 modules, which set up scenes and starts).
 """
+from . import interrupt as _interrupt
+
+_interrupt.install()

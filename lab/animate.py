@@ -280,6 +280,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from .cli import main_guard
+    from .cli import script_main
 
-    main_guard(main)
+    script_main(main)

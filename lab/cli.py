@@ -44,10 +44,11 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from sph.diagnostics import SimulationError
+from sph.errors import SimulationError
 from sph.errors import ConfigError
 from .io import OutputError
 from sph.xla_cpu import set_cpu_defaults
+from .interrupt import interrupted_line
 
 EXIT_CONFIG = 2
 EXIT_SIMULATION = 3
@@ -67,17 +68,11 @@ def format_error(e: BaseException) -> str:
     return f"error ({kind}): {text}"
 
 
-def interrupted_line() -> str:
-    """What Ctrl-C prints: the script stopped, what it finished is kept, how to go on."""
-    script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else "python"
-    return (f"interrupted: {script} stopped; finished runs and frames are kept, an unfinished run resumes "
-            "from its last checkpoint: resume with the same command")
-
-
 def main_guard(fn, *args, **kwargs):
     """Run `fn(*args, **kwargs)` after setting XLA's CPU defaults; ConfigError -> one line on stderr
     and exit code 2, SimulationError -> 3, a damaged result file (io.OutputError) -> 4, Ctrl-C -> one
-    line and 130 (see the module docstring). Returns fn's result otherwise."""
+    line and 130 (see the module docstring; a script's entry point, `script_main`, leaves at once
+    on Ctrl-C). Returns fn's result otherwise."""
     set_cpu_defaults()
     try:
         return fn(*args, **kwargs)
@@ -95,16 +90,33 @@ def main_guard(fn, *args, **kwargs):
         raise SystemExit(code) from None
 
 
-def _excepthook(kind, value, tb, _default=sys.excepthook):
-    """Ctrl-C outside `main_guard` (while a script imports, or in a script without it): one line, no
-    traceback; everything else as Python prints it."""
-    if issubclass(kind, KeyboardInterrupt) and not os.environ.get("SPH_TRACEBACK"):
-        print(interrupted_line(), file=sys.stderr, flush=True)
-        return
-    _default(kind, value, tb)
+def script_main(fn, *args, **kwargs):
+    """`main_guard(fn, ...)` as a script's entry point (the process ends with it): after Ctrl-C it
+    leaves at once with 130 (`exit_interrupted`) instead of raising SystemExit."""
+    try:
+        return main_guard(fn, *args, **kwargs)
+    except SystemExit as e:
+        if e.code == EXIT_INTERRUPTED:
+            exit_interrupted()
+        raise
 
 
-sys.excepthook = _excepthook
+def exit_interrupted():
+    """Leave with EXIT_INTERRUPTED (130) at once, after flushing stdout and stderr. By now the
+    interrupt has unwound every `with` and `finally` of the run (trajectory files closed, their last
+    checkpoint kept, locks and temporary files released); the interpreter's own teardown is skipped
+    because XLA's CPU client, torn down while its worker threads are still running an interrupted
+    computation, can crash there (a segmentation fault, exit 139, instead of 130). Only for a
+    process that ends here (`script_main`): it ends the process, whoever called it."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(EXIT_INTERRUPTED)
+
+
+
 
 
 class _Parser(argparse.ArgumentParser):
@@ -143,7 +155,8 @@ def profile_args(doc: Optional[str], argv=None, options: Optional[Callable] = No
 
 def profile_main(main: Callable, doc: Optional[str], options: Optional[Callable] = None, argv=None):
     """A script's command-line tail: `main(profile_args(doc, argv, options))` through `main_guard`."""
-    return main_guard(lambda: main(profile_args(doc, argv, options)))
+    guard = script_main if argv is None else main_guard   # argv given: called from Python, not a script's end
+    return guard(lambda: main(profile_args(doc, argv, options)))
 
 
 def experiment_main(work: Callable, load: Callable, doc: Optional[str], argv=None):

@@ -295,12 +295,31 @@ def locate(error: ConfigError, path, profile: str, origins: dict) -> ConfigError
     return ConfigError(text, file=str(path), profile=profile, origin=origin, key=key)
 
 
+HARNESS_KEYS = ("devices",)
+"""Profile keys that the harness reads and a study's Settings never sees (`harness_options`)."""
+
+
+def harness_options(path, profile: str, overrides: Optional[dict] = None) -> dict:
+    """The harness keys of profile `profile` (HARNESS_KEYS), validated, with their defaults:
+
+    devices   how many devices each run's steps use (sph.parallel; default 1); `make DEVICES=N`
+              (lab.experiment --devices N) overrides it"""
+    mapping = profile_mapping(path, profile, overrides)
+    devices = mapping.get("devices", 1)
+    if not (isinstance(devices, int) and not isinstance(devices, bool) and devices >= 1):
+        raise ConfigError(f"{path}: profiles.{profile}.devices: must be a whole number >= 1, got {devices!r}",
+                          file=str(path), profile=profile, key="devices")
+    return {"devices": devices}
+
+
 def load_profile(cls, path, profile: str, overrides: Optional[dict] = None):
-    """Build `cls` from profile `profile` of a YAML file (see `profile_mapping`). Errors name the
-    file, the profile the offending key is written in (an inherited one if the requested profile
-    does not set it) and the key path, e.g. ``config.yaml: profiles.paper.dx[0]: ... (profile smoke
-    inherits it from paper)``; the ConfigError carries them as `file`, `profile`, `origin`, `key`."""
+    """Build `cls` from profile `profile` of a YAML file (see `profile_mapping`; the HARNESS_KEYS
+    left out). Errors name the file, the profile the offending key is written in (an inherited one
+    if the requested profile does not set it) and the key path, e.g. ``config.yaml:
+    profiles.paper.dx[0]: ... (profile smoke inherits it from paper)``; the ConfigError carries them
+    as `file`, `profile`, `origin`, `key`."""
     mapping, origins = profile_mapping(path, profile, overrides, with_origins=True)
+    mapping = {k: v for k, v in mapping.items() if k not in HARNESS_KEYS}
     try:
         return from_mapping(cls, mapping, f"profiles.{profile}")
     except ConfigError as e:

@@ -39,6 +39,24 @@ and optionally, in study.py, where a folder needs more:
                   extra columns (default: the err_<name> metrics as errors, the run's name and the
                   other metrics as columns)
   preflight(runs)          refusals made before any of `runs` (those about to run) is built (memory)
+  FAILURES        "record": a run that raises (the driver's blow-up stop, a scene that cannot be built)
+                  is an outcome, not an error (experiments/stability): the exception goes to the run's
+                  failure.json under the run's key, the run counts as done (re-run only when its key
+                  changes) and `metrics(run, traj)` receives traj["failure"] (error, kinds, message,
+                  traceback) with whatever the run wrote (its frames up to the last good one and their
+                  checkpoint; traj["metadata"] None when it failed before writing any)
+  parts(exp) -> Experiments    the folder runs other folders' studies (experiments/accuracy: tgv2d per
+                  kernel and dtype, each under a results root of its own): `run_all` runs theirs (their
+                  runs, records and tables), one after the other, in place of its own runs
+  compute(run, folder, progress) -> dict   the run's work when it is not a simulation with a trajectory
+                  (gradcheck: a gradient check; inverse: an optimisation): it replaces `scene` and the
+                  simulation, may write files (arrays) into `folder` (the run's folder, <results>/<dir
+                  name>/<run name>) and returns the run's result, a JSON mapping, cached in folder/result.json
+                  under the run's key (its keyed fields and the code of study.py with the sph modules it
+                  imports; a run needs no `t_end` or `frames`): a run whose result.json holds its current
+                  key is skipped, any other is computed again. `metrics(run, traj)` then receives traj =
+                  {"result": that mapping, "folder": the run's folder, "key": its key}; such a run writes
+                  no record.json (it has no metadata.json): its row of the table is its metrics
 
 A run may name the `groups` it belongs to (e.g. the figures that show it): `--group G` runs only those,
 and the Makefile's protocol rules give each group of a folder's rules.mk (GROUPS.<dir>) a stamp of its own.
@@ -54,23 +72,31 @@ included, `keys.code_fingerprint`). A copied folder is an experiment of its own:
 """
 import importlib.util
 import re
+import traceback
 from dataclasses import fields
 from pathlib import Path
 from typing import Callable, Optional
 
 from sph.precision import resolve
 from sph.solver import build_solver
-from .configtools import load_profile, require, to_mapping
-from .io import MissingOutput, read_metadata, read_trajectory
+from .cli import profile_main
+from .configtools import harness_options, load_profile, require, to_mapping
+from .io import MissingOutput, read_metadata, read_trajectory, write_metadata
 from .keys import code_fingerprint, digest
+from .lock import folder_lock
 from .protocol import Start, Table
 from .record import record, save_record
-from .runs import RunSpec, cached_positions, run_cached, stored_state
+from .runs import RunOutcome, RunSpec, cached_positions, run_cached, stored_state
+from .stamp import note_current
 from .tables import read_table, write_table
 
 DEFAULT_KEEP = ("velocity", "pressure")
 RUN_NAME = re.compile(r"[A-Za-z_](?:[A-Za-z0-9_-]|\.(?!\.))*")
 """A run's name, its folder: a name (configtools.NAME) that may hold single dots (tvf_dx0.02)."""
+FAILURE = "failure.json"
+"""A failed run's record (a study with FAILURES = "record"), in its folder."""
+RESULT = "result.json"
+"""A computed run's result under its key (a study with `compute`), in its folder."""
 RUN_OPTIONS = ("case", "method", "keep", "frame_dt", "connectivity_radius_factor", "u_limit", "metadata")
 """What a study's `run_options(run)` may set of a run's RunSpec (lab.runs)."""
 
@@ -111,13 +137,16 @@ class Experiment:
     """An experiment folder at one profile: its study, settings, runs and paths (`overrides`, a mapping,
     is merged over the profile last)."""
 
-    def __init__(self, folder, profile: str, results, overrides: Optional[dict] = None):
+    def __init__(self, folder, profile: str, results, overrides: Optional[dict] = None, devices: Optional[int] = None):
         self.folder = Path(folder).resolve()
         self.name = self.folder.name
         self.profile, self.results = profile, Path(results)
         self.study = load_study(self.folder)
         self.analysis = load_study(self.folder, "analysis") if (self.folder / "analysis.py").exists() else self.study
         self.settings = load_profile(self.study.Settings, self.folder / "config.yaml", profile, overrides)
+        self.devices = devices or harness_options(self.folder / "config.yaml", profile, overrides)["devices"]
+        """How many devices each run's steps use: `devices` (the command line's --devices), else the
+        profile's `devices:` (default 1); not part of a run's key (lab.runs.RunSpec.devices)."""
         self.runs = tuple(self.study.runs(self.settings))
         names = [require_file_name(r.name, "run name") for r in self.runs]
         for i, n in enumerate(names):
@@ -167,7 +196,8 @@ class Experiment:
         metadata = {"run": to_mapping(run), **opts.pop("metadata", {})}
         frames = {} if "frame_dt" in opts else {"frames": run.frames}
         return RunSpec(**{"case": self.name, "method": self.method(run), "keep": self.keep, **opts, **frames},
-                       folder=self.out_dir / run.name, fingerprint=key, t_end=run.t_end, metadata=metadata)
+                       folder=self.out_dir / run.name, fingerprint=key, t_end=run.t_end, metadata=metadata,
+                       devices=self.devices)
 
     def method(self, run) -> str:
         return getattr(self.study, "METHOD", None) or getattr(run, "method", None) or run.name
@@ -185,12 +215,99 @@ class Experiment:
 
     def run_one(self, run, progress: bool = True, callback=None):
         """Run (or skip, or resume) `run`; its lab.runs.RunOutcome."""
+        if self.computes:
+            return self._compute(run, progress)
         start = getattr(self.study, "initial_state", None)
-        return run_cached(self.spec(run), lambda: self.solver(run, progress), progress=progress, callback=callback,
-                          initial_state=None if start is None else lambda solver: start(run, solver))
+
+        def go():
+            return run_cached(self.spec(run), lambda: self.solver(run, progress), progress=progress, callback=callback,
+                              initial_state=None if start is None else lambda solver: start(run, solver))
+        return self._recording_failure(run, go) if self.records_failures else go()
+
+    # -- runs that compute instead of simulating (a study's `compute`) ------------------------------------
+    @property
+    def computes(self) -> bool:
+        return hasattr(self.study, "compute")
+
+    def compute_key(self, run) -> str:
+        """The key of a computed run: its keyed fields and the code of study.py with the sph modules it imports."""
+        return digest({"run": run_key(run), "code": self._code()})
+
+    def result(self, run) -> Optional[dict]:
+        """The result of a computed run (its result.json) when made from its current key, else None."""
+        stored = read_metadata(self.out_dir / run.name / RESULT)
+        if stored is None or stored.get("key") != self.compute_key(run) or not isinstance(stored.get("result"), dict):
+            return None
+        return stored["result"]
+
+    def _compute(self, run, progress: bool = True) -> RunOutcome:
+        """`compute(run, folder, progress)` of the study, skipped when its result is current; the result is
+        written (last, after whatever files the study wrote) to the run's result.json under its key."""
+        folder = self.out_dir / run.name
+        label = f"{self.name}/{run.name}"
+        with folder_lock(folder):  # one writer at a time (make -j2)
+            if self.result(run) is not None:
+                note_current(folder)
+                print(f"{label}: current (same inputs), skipped", flush=True)
+                return RunOutcome("skipped", folder)
+            (folder / RESULT).unlink(missing_ok=True)
+            key = self.compute_key(run)
+            result = self.study.compute(run, folder, progress)
+            write_metadata(folder / RESULT, {"key": key, "result": result})
+            note_current(folder)
+        return RunOutcome("run", folder)
+
+    # -- failed runs as outcomes (FAILURES = "record") ----------------------------------------------------
+    @property
+    def records_failures(self) -> bool:
+        return getattr(self.study, "FAILURES", None) == "record"
+
+    def failure(self, run) -> Optional[dict]:
+        """The failure.json of `run` when the study records failures and it was made from the run's
+        current inputs (its key), else None."""
+        if not self.records_failures:
+            return None
+        spec = self.spec(run)
+        rec = read_metadata(Path(spec.folder) / FAILURE)
+        return rec if rec is not None and rec.get("fingerprint") == spec.fingerprint else None
+
+    def state(self, run) -> str:
+        """lab.runs.stored_state of the run's trajectory, or "current" for a failure recorded under its key;
+        of a computed run: "current" when its result is, else "stale" (made from other inputs) or "missing"."""
+        if self.computes:
+            return "current" if self.result(run) is not None else \
+                "stale" if (self.out_dir / run.name / RESULT).exists() else "missing"
+        return "current" if self.failure(run) is not None else stored_state(self.spec(run))
+
+    def _recording_failure(self, run, go):
+        """`go()` (the cached run), its exception written to failure.json instead of raised; a run whose
+        failure is recorded under its current key is skipped."""
+        spec = self.spec(run)
+        path = Path(spec.folder) / FAILURE
+        if self.failure(run) is not None:
+            note_current(spec.folder)
+            print(f"{spec.label}: failed before with the same inputs ({path.name}), skipped", flush=True)
+            return RunOutcome("skipped", Path(spec.folder))
+        path.unlink(missing_ok=True)
+        try:
+            return go()
+        except Exception as e:  # noqa: BLE001 (the study asked for every failure as an outcome)
+            write_metadata(path, {"fingerprint": spec.fingerprint, "error": type(e).__name__,
+                                  "kinds": [c.__name__ for c in type(e).__mro__], "message": str(e),
+                                  "traceback": traceback.format_exc()})
+            note_current(spec.folder)
+            print(f"{spec.label}: failed, recorded in {path}: {type(e).__name__}: {' '.join(str(e).split())[:300]}",
+                  flush=True)
+            return RunOutcome("failed", Path(spec.folder))
 
     def run_all(self, only=None, progress: bool = True, callback=None):
         """Run (or skip, or resume) the runs (`only`: these names), then rebuild every record and the table."""
+        if hasattr(self.study, "parts"):
+            self.part_tables = []
+            for part in self.study.parts(self):
+                part.run_all(None, progress, callback)
+                self.part_tables += sorted({part.table_path(r) for r in part.runs})
+            return None
         chosen = [r for r in self.runs if only is None or r.name in only]
         if hasattr(self.study, "preflight"):
             self.study.preflight(chosen)
@@ -200,9 +317,16 @@ class Experiment:
 
     # -- what a run measures ------------------------------------------------------------------------
     def current(self, run) -> RunSpec:
-        """The spec of `run`, refused (naming the run and how to make it) unless its output is current."""
+        """The spec of `run`, refused (naming the run and how to make it) unless its output is current (a
+        computed run: its result.json, refused likewise)."""
+        if self.computes:
+            if self.result(run) is None:
+                raise MissingOutput(f"{self.out_dir / run.name / RESULT}: run {run.name} of profile {self.profile} is "
+                                    f"{self.state(run)}, not made from the current config and code; run "
+                                    f"`make {self.name} PROFILE={self.profile}`")
+            return None
         spec = self.spec(run)
-        state = stored_state(spec)
+        state = self.state(run)
         if state != "current":
             raise MissingOutput(f"{spec.traj}: run {run.name} of profile {self.profile} is {state}, not made from "
                                 f"the current config and code; run `make {self.name} PROFILE={self.profile}`")
@@ -211,10 +335,21 @@ class Experiment:
     def trajectory(self, run) -> dict:
         """The trajectory of `run` with its metadata.json as ["metadata"], refused unless it is current; JAX
         then computes in the run's precision (x64 on for a float64 run: a metric evaluated with JAX gives
-        the same numbers in the process that made the run as in a plot script's)."""
+        the same numbers in the process that made the run as in a plot script's). A computed run's: its
+        result, folder and key (`compute`)."""
+        if self.computes:
+            self.current(run)
+            return {"result": self.result(run), "folder": self.out_dir / run.name, "key": self.compute_key(run)}
         spec = self.current(run)
-        traj = getattr(self.analysis, "read_trajectory", read_trajectory)(spec.traj)
+        failure = self.failure(run)
+        read = getattr(self.analysis, "read_trajectory", read_trajectory)
+        traj = read(spec.traj) if failure is None or stored_state(spec) == "partial" else {}
         traj["metadata"] = read_metadata(spec.meta_path)
+        if failure is not None:  # what the failed run wrote (its frames, its metadata), if anything
+            traj["failure"] = failure
+            if traj["metadata"] is None or traj["metadata"].get("fingerprint") != spec.fingerprint:
+                traj["metadata"] = None
+                return traj
         resolve(traj["metadata"]["dtype"])  # measured in the run's precision, whatever ran before in this process
         return traj
 
@@ -224,6 +359,10 @@ class Experiment:
     def record(self, run, metrics: Optional[dict] = None) -> dict:
         """The run's record (RECORD_COLUMNS, err_<name>, the other columns), written as record.json."""
         m = self.metrics(run) if metrics is None else metrics
+        if self.failure(run) is not None:
+            spec = self.spec(run)
+            if (read_metadata(spec.meta_path) or {}).get("fingerprint") != spec.fingerprint:
+                return {}  # failed before its metadata was written: nothing to record
         if hasattr(self.analysis, "record"):
             parts = dict(self.analysis.record(run, m))
         else:
@@ -240,8 +379,11 @@ class Experiment:
         rows = {}
         for run in self.runs:
             rows.setdefault(self.table_path(run), [])
-            if stored_state(self.spec(run)) == "current":
+            if self.state(run) == "current":
                 m = self.metrics(run)
+                if self.computes:  # no metadata.json, no record: the row is its metrics
+                    rows[self.table_path(run)].append(m)
+                    continue
                 rec = self.record(run, m)
                 rows[self.table_path(run)].append(rec if self.table_spec.rows == "records" else m)
         t = self.table_spec
@@ -255,7 +397,7 @@ class Experiment:
         runs = self.runs if runs is None else list(runs)
         paths = sorted({self.table_path(r) for r in runs})
         require(len(paths) == 1, "runs", f"go to {len(paths)} tables ({[p.name for p in paths]}): ask for one")
-        missing = [r.name for r in runs if stored_state(self.spec(r)) != "current"]
+        missing = [r.name for r in runs if self.state(r) != "current"]
         if missing:
             raise MissingOutput(f"{self.name} ({self.profile}): runs {', '.join(missing)} are missing or were made from "
                                 f"other inputs; run `make {self.name} PROFILE={self.profile}`")
@@ -311,8 +453,6 @@ def progress_lines(every: int) -> Callable:
 
 
 def main(argv=None):
-    from .cli import profile_main
-
     def options(ap):
         ap.add_argument("folder", help="the experiment folder (config.yaml, study.py)")
         ap.add_argument("--only", nargs="*", default=None, help="run names to run (default: all)")
@@ -320,9 +460,18 @@ def main(argv=None):
         ap.add_argument("--method", nargs="*", default=None, help="only the runs of these methods (a run's `method`)")
         ap.add_argument("--no-progress", action="store_true")
         ap.add_argument("--log-every", type=int, default=None, help="print a progress line every N frames")
+        ap.add_argument("--devices", type=int, default=None,
+                        help="devices per run (sph.parallel; default: the profile's devices:, else 1; a CPU-only "
+                             "host is split into that many XLA devices)")
 
     def work(args):
-        exp = Experiment(args.folder, args.profile, args.results)
+        if args.devices is not None:
+            require(args.devices >= 1, "--devices", f"must be >= 1, got {args.devices}")
+        exp = Experiment(args.folder, args.profile, args.results, devices=args.devices)
+        if exp.devices > 1:
+            from sph.parallel.devices import use_devices
+
+            use_devices(exp.devices)
         names = [r.name for r in exp.runs]
         if args.only is not None:
             bad = [n for n in args.only if n not in names]
@@ -342,7 +491,7 @@ def main(argv=None):
             require(args.log_every >= 1, "--log-every", f"must be >= 1, got {args.log_every}")
             callback = progress_lines(args.log_every)
         exp.run_all(only, not args.no_progress, callback)
-        tables = sorted({str(exp.table_path(r)) for r in exp.runs})
+        tables = [str(t) for t in getattr(exp, "part_tables", None) or sorted({exp.table_path(r) for r in exp.runs})]
         print(f"{exp.name}: {len(exp.runs) if only is None else len(only)} runs -> {', '.join(tables)}")
 
     return profile_main(work, __doc__, options, argv)

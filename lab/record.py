@@ -13,10 +13,13 @@ from . import io
 from .stamp import note_current
 
 RECORD_COLUMNS = ("experiment", "target", "method", "effects", "kernel", "h_factor", "dx", "dim", "dtype", "n_particles",
-                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "other_load", "peak_rss_mb")
+                  "n_steps", "dt", "t_end", "wall_s", "compile_s", "ms_per_step", "other_load", "peak_rss_mb",
+                  "devices", "processes")
 """The fixed columns of a run record; the run's error metrics follow as err_<name>. other_load: the cores
 other processes kept busy, on average, while the run was timed (lab.other_load; NaN: not
-measured, as in runs made before it was recorded)."""
+measured, as in runs made before it was recorded). devices, processes: what the run's steps ran on
+(sph.parallel; 1 and 1 for runs made before multi-device runs were recorded, all of which ran on one
+device); the decomposition itself is in metadata.json."""
 
 
 def record(folder, *, experiment: str, target: str, method: str, errors: dict, **extra) -> dict:
@@ -31,7 +34,8 @@ def record(folder, *, experiment: str, target: str, method: str, errors: dict, *
            "effects": "+".join(meta.get("effects", [])) or "standard", "kernel": meta.get("kernel", ""),
            "h_factor": float((meta.get("numerics") or {}).get("h_factor", np.nan)), "dx": float(meta["dx"]), "dim": int(meta["dim"]), "dtype": meta["dtype"],
            "n_particles": int(meta["num_particles_max"]), "n_steps": n_steps, "dt": float(meta["dt"]),
-           "t_end": float(meta["t_end"]), **timing(meta, n_steps), "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan))}
+           "t_end": float(meta["t_end"]), **timing(meta, n_steps), "peak_rss_mb": float(meta.get("peak_rss_mb", np.nan)),
+           "devices": int(meta.get("devices", 1)), "processes": int(meta.get("processes", 1))}
     rec.update({f"err_{k}": float(v) for k, v in errors.items()})
     rec.update(extra)
     return rec

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
+import jax
 import numpy as np
 
 from sph import simulate
@@ -52,6 +53,9 @@ class RunSpec:
     keep         per-frame fields stored besides position (lab.io.FIELDS)
     metadata     experiment-specific entries of metadata.json
     u_limit      blow-up speed limit (None: the driver's default, tied to c_ref)
+    devices      how many devices the steps run on (sph.parallel; not part of the fingerprint: the
+                 numbers equal one device's to round-off, so a run made on D devices is current for
+                 any D, and its metadata.json and record say which it was made on)
     """
 
     folder: Path
@@ -65,10 +69,13 @@ class RunSpec:
     connectivity_radius_factor: float = 1.45
     metadata: dict = field(default_factory=dict)
     u_limit: Optional[float] = None
+    devices: int = 1
 
     def __post_init__(self):
         if (self.frames is None) == (self.frame_dt is None):
             raise ValueError("RunSpec: give exactly one of frames and frame_dt")
+        if not (isinstance(self.devices, int) and not isinstance(self.devices, bool) and self.devices >= 1):
+            raise ValueError(f"RunSpec: devices must be a whole number >= 1, got {self.devices!r}")
 
     @property
     def traj(self) -> Path:
@@ -96,9 +103,9 @@ class RunOutcome:
 def check_fits(where: str, n: int, dim: int, dx: float, numerics) -> int:
     """Refuse, from the config alone (no scene, no array, no relaxation built), a run of `n` particles
     at spacing `dx` with `numerics` that cannot fit into the available memory: the same estimate as
-    `sph.build_solver`'s (sph.checks.check_memory, neighbour_slots), made before a study builds or
+    `sph.build_solver`'s (sph.memory.check_memory, neighbour_slots), made before a study builds or
     relaxes anything, so a resolution that does not fit is refused in seconds. Returns the bytes."""
-    from sph.checks import check_memory, neighbour_slots
+    from sph.memory import check_memory, neighbour_slots
     from sph.kernels import make_kernel
 
     cutoff = make_kernel(numerics.kernel, numerics.h_factor * dx, dim).cutoff
@@ -225,13 +232,16 @@ def _run_locked(spec: RunSpec, make_solver: Callable, initial_state: Optional[Ca
             io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every))
         with OtherLoad() as load:
             res = simulate.run(solver, state, nbrs, spec.t_end, write_every, writer=writer, progress=progress,
-                               step0=step0, desc=label, callback=callback, u_limit=spec.u_limit)
+                               step0=step0, desc=label, callback=callback, u_limit=spec.u_limit,
+                               devices=spec.devices)
         timings = {"wall_s": res.wall_s_total, "compile_s": res.compile_s, "n_steps": res.step_end,
-                   "n_reallocations": res.n_reallocations_total, "peak_rss_mb": peak_rss_mb()}
+                   "n_reallocations": res.n_reallocations_total, "peak_rss_mb": peak_rss_mb(),
+                   "devices": spec.devices, "processes": jax.process_count()}
         position = writer.group["position"][...]
         stats = io.lagrangebench_stats(position, solver.scene.domain.box, solver.scene.domain.periodic)
+        layout = {"decomposition": res.decomposition} if res.decomposition is not None else {}
         io.write_metadata(spec.meta_path, _metadata(spec, solver, n_steps, write_every, **stats, **timings,
-                                                      **load.fields()))
+                                                      **layout, **load.fields()))
         writer.mark_complete(**timings, other_load=load.cores)  # last: a run is complete only once its metadata is written
     xdmf.write_sidecar(spec.traj)
     note_current(spec.folder)

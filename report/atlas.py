@@ -31,8 +31,8 @@ class LevelRow:
 def settings(profile: str) -> tuple:
     """(levels, error name) of the atlas's config for `profile` (defaults if it cannot be read)."""
     try:
-        from experiments.accuracy import settings as S
-        a = S.load(profile)
+        from lab.experiment import load_settings
+        a = load_settings(Path(__file__).resolve().parents[1] / "experiments" / "accuracy", profile)
         return tuple(a.levels), a.tgv.error
     except Exception:  # noqa: BLE001 - the table still renders with the documented defaults
         return DEFAULT_LEVELS, DEFAULT_ERROR

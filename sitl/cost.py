@@ -317,7 +317,8 @@ def record(exp: S.Experiment, p: Point, row: dict) -> dict:
              "effects": "standard" if p.kind != "gns" else "", "kernel": "quintic" if p.kind != "gns" else "",
              "h_factor": 1.0 if p.kind != "gns" else float("nan"), "dx": d.dx, "dim": 2, "dtype": exp.train.dtype, "n_particles": d.n_particles, "n_steps": n,
              "dt": frame_dt, "t_end": n * frame_dt, "wall_s": n * s, "compile_s": row["compile_s"],
-             "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb(), "other_load": row["other_load"]}
+             "ms_per_step": 1e3 * s, "peak_rss_mb": runs.peak_rss_mb(), "other_load": row["other_load"],
+             "devices": 1, "processes": 1}
     rec = {c: fixed[c] for c in RECORD_COLUMNS}
     rec.update({f"err_{k}": row[k] for k in ("mse20", "mse5", "e_kin")})
     rec.update({k: row[k] for k in ("kind", "M", "substeps", "substep_dt", "substep_over_cfl", "finite",

@@ -1,8 +1,11 @@
-"""Configuration errors and value checks of the physics core (no YAML, no files).
+"""The core's errors: configuration errors and value checks (no YAML, no files), and the run-time
+errors of a simulation.
 
 `ConfigError` names the bad key; `require` / `require_finite` are what config dataclasses call in
 `__post_init__`. The harness (`lab.configtools`: YAML profiles) builds on these; the core never
-imports the harness.
+imports the harness. `SimulationError` and its kinds (`BlowUp`, `ParticleEscaped`,
+`NeighborOverflow`) stop a run whose state became unphysical (raised by `sph.guard.StepGuard`, the
+rollouts and the driver).
 """
 import dataclasses
 import math
@@ -52,3 +55,27 @@ def require_finite(obj, section: str = "", allow_inf=()) -> None:
                 check(x, f"{prefix}{f.name}[{i}]", f.name)
         else:
             check(v, prefix + f.name, f.name)
+
+
+class SimulationError(RuntimeError):
+    """A run stopped because its state became unphysical. The message names the step, the particle
+    and its position; `step` (the step that was refused), `particle` and `position` carry them, and
+    `state` / `nbrs` the last good state (before that step) when known."""
+
+    def __init__(self, msg: str, *, step=None, particle=None, position=None, state=None, nbrs=None):
+        super().__init__(msg)
+        self.step, self.particle, self.position = step, particle, position
+        self.state, self.nbrs = state, nbrs
+
+
+class BlowUp(SimulationError):
+    """A field became NaN/inf, or a fluid speed exceeded the run's speed limit u_limit."""
+
+
+class ParticleEscaped(SimulationError):
+    """A fluid particle left the domain through a non-periodic side (beyond the wall layers or out of
+    an open side of the box). Never taken: the neighbour search would wrap it around to the far side."""
+
+
+class NeighborOverflow(SimulationError):
+    """The neighbour list overflowed again and again although re-allocated (particles clumping)."""

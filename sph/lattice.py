@@ -22,7 +22,7 @@ def _check_lattice(counts, dx) -> None:
         return
     import psutil
 
-    from .checks import InsufficientMemory
+    from .memory import InsufficientMemory
 
     avail = psutil.virtual_memory().available
     if need > avail:
@@ -53,7 +53,7 @@ def check_run_size(n: int, dx: float, where: str) -> None:
         return
     import psutil
 
-    from .checks import InsufficientMemory
+    from .memory import InsufficientMemory
 
     avail = psutil.virtual_memory().available
     if need > avail:

@@ -10,7 +10,7 @@ checkpointing over segments and per step). `value_and_grad_rollout` differentiat
 and never returns a gradient of an overflowed rollout: it checks the overflow flag outside `jit`,
 sizes a list for the whole trajectory (`size_list`) and recomputes.
 
-The step guard (`sph.diagnostics.StepGuard`, `solver.guard`): `make_chunk(..., guard=g)` refuses a
+The step guard (`sph.guard.StepGuard`, `solver.guard`): `make_chunk(..., guard=g)` refuses a
 step after which a fluid particle is outside the domain in a non-periodic dimension, moves faster
 than the guard's speed limit or has a non-finite velocity or density; the chunk then stops with the
 last good state and `advance` raises the guard's diagnosis (`ParticleEscaped`, `BlowUp`), naming the
@@ -23,7 +23,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .diagnostics import NeighborOverflow
+from .errors import NeighborOverflow
 
 
 def _select(pred, a, b):
@@ -33,7 +33,7 @@ def _select(pred, a, b):
 def make_chunk(step_fn, length: int, guard=None):
     """chunk(state, nbrs, step0, n_target) -> (state, nbrs, n_done, overflowed).
 
-    With a `guard` (`sph.diagnostics.StepGuard`, e.g. `solver.guard`) a step the guard rejects is
+    With a `guard` (`sph.guard.StepGuard`, e.g. `solver.guard`) a step the guard rejects is
     not taken either: the chunk stops there with the last good state, n_done < n_target and
     overflowed false (`advance` raises the guard's diagnosis). The guard rides along as
     `chunk.guard` (kept by `jax.jit`)."""
@@ -96,7 +96,7 @@ def scan_rollout(step_fn, state, nbrs, n_steps: int, step0: int = 0, segments: i
 
     `guard` ("auto": `step_fn.guard`, which `solver.step_fn` carries; None: off) flags a rollout in
     which a fluid particle left the domain, exceeded the speed limit or became non-finite
-    (`sph.diagnostics.StepGuard`); by default that flag is folded into `overflowed` (the result is
+    (`sph.guard.StepGuard`); by default that flag is folded into `overflowed` (the result is
     invalid either way), with `split=True` it is returned apart: (state, nbrs, overflowed, refused).
     A refused rollout is not cured by a larger list: `value_and_grad_rollout` raises the diagnosis.
 

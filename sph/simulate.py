@@ -6,20 +6,26 @@ step). After every chunk it records a frame (t, u_max, E_kin, max density error;
 kept fields go to the optional writer, `lab.io.TrajectoryWriter`) and overwrites its
 checkpoint, so an interrupted run continues with `resume(solver, writer)` + `run(..., step0=step)`.
 
-Timing: the chunk is compiled ahead of every call with new shapes (`jit(...).lower(...).compile()`,
+Timing (`sph.compiled`): the chunk is compiled ahead of every call with new shapes (`jit(...).lower(...).compile()`,
 which fills the same cache the calls use, without taking a step): before the loop and again after a
 neighbour re-allocation changes the list's capacity. That time is `compile_s`; `wall_s` is the
 solve time of the chunks only, each synchronised with `block_until_ready`, compilation excluded.
 
-Every step is guarded (`solver.guard`, `sph.diagnostics.StepGuard`, on by default): a step after
+Every step is guarded (`solver.guard`, `sph.guard.StepGuard`, on by default): a step after
 which a fluid particle is outside the domain in a non-periodic dimension (`ParticleEscaped`), a
 fluid speed exceeds `u_limit` (default: the artificial sound speed c_ref, a finite blow-up) or a
 velocity or density is non-finite (`BlowUp`) is not taken; the neighbour list overflowing again
 and again is `NeighborOverflow`. `run` then raises that `SimulationError` (a RuntimeError) naming
 the step, the time, the particle, its position and the likely cause (dt against its limits); a bad
 state the guard does not see (another field non-finite) is found at the end of the chunk and
-located by bisecting the chunk from its last good state. The writer keeps the last good frame and
+located by bisecting the chunk from its last good state (`sph.blowup`). The writer keeps the last good frame and
 its checkpoint, and the message says where.
+
+Devices (`devices`, default 1): with D > 1 the chunks run on D devices (`sph.parallel`: slabs,
+halo exchange, migration; `sph.parallel.chunks`), equal to one device's to round-off; each frame
+gathers the global state, so frames, checkpoints, callbacks and diagnostics are as on one device. A
+bad chunk is then located by the single-device bisection from its last good frame. The particle
+order below does not apply (each device's rows are its own).
 
 Particle order (`reorder_every`, default numerics.reorder_every; `sph.reorder`): every that many
 steps (at the next frame), and before the first chunk of a resumed run (whose checkpoint is in the
@@ -41,7 +47,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from . import diagnostics, reorder
-from .diagnostics import SimulationError
+from .blowup import is_bad, locate_blowup, with_checkpoint
+from .compiled import CompiledChunk
+from .errors import SimulationError
 from .rollout import advance, make_chunk
 from .state import ParticleState
 
@@ -73,38 +81,12 @@ class RunResult:
     state: ParticleState
     nbrs: object
     n_reorders: int = 0
+    decomposition: Optional[dict] = None
+    """With devices > 1: the decomposition (`sph.parallel.chunks.ShardedChunks.describe`)."""
 
     @property
     def ms_per_step(self) -> float:
         return 1e3 * self.wall_s / self.n_steps if self.n_steps else float("nan")
-
-
-class _CompiledChunk:
-    """A jitted chunk that compiles (timed) before its first call with each new argument signature,
-    so compilation is measured apart from execution even when `advance` re-allocates mid-chunk."""
-
-    def __init__(self, jitted):
-        self.jitted = jitted
-        self.guard = getattr(jitted, "guard", None)  # make_chunk's step guard, for `advance`
-        self.seen = set()
-        self.compile_s = 0.0
-
-    @staticmethod
-    def _signature(args):
-        leaves, treedef = jax.tree_util.tree_flatten(args)
-        return treedef, tuple((np.shape(x), str(getattr(x, "dtype", type(x).__name__))) for x in leaves)
-
-    def compile(self, *args):
-        sig = self._signature(args)
-        if sig not in self.seen:
-            t0 = time.perf_counter()
-            self.jitted.lower(*args).compile()
-            self.compile_s += time.perf_counter() - t0
-            self.seen.add(sig)
-
-    def __call__(self, *args):
-        self.compile(*args)
-        return self.jitted(*args)
 
 
 def resume(solver, writer):
@@ -116,7 +98,7 @@ def resume(solver, writer):
 def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progress: bool = True,
         step0: int = 0, *, n_steps: Optional[int] = None, callback: Optional[Callable] = None,
         desc: Optional[str] = None, max_reallocations: int = 10, u_limit: Optional[float] = None,
-        reorder_every: Optional[int] = None) -> RunResult:
+        reorder_every: Optional[int] = None, devices: int = 1) -> RunResult:
     """Advance from global step `step0` to `n_steps` (default `solver.n_steps(t_end)`) in chunks of
     `write_every` steps (the last one may be shorter), recording a frame after each chunk.
 
@@ -128,9 +110,15 @@ def run(solver, state, nbrs, t_end: float, write_every: int, writer=None, progre
     speed check off (non-finite fields and particles leaving the domain still stop the run).
     `reorder_every`: sort the particles by cell every that many steps (None: numerics.reorder_every;
     0: never); results equal the unsorted run's to round-off (the pair sums' order changes).
+    `devices`: run the chunks on that many devices (module docstring; no sorting then).
     """
     n_total, u_limit, reorder_every = _checked(solver, t_end, write_every, step0, n_steps, u_limit, reorder_every)
-    session = _Session(solver, write_every, writer, u_limit, reorder_every, max_reallocations)
+    sharded = None
+    if devices != 1:
+        from .parallel.chunks import ShardedChunks
+
+        sharded, reorder_every = ShardedChunks(solver, devices, max(1, min(write_every, n_total - step0))), 0
+    session = _Session(solver, write_every, writer, u_limit, reorder_every, max_reallocations, sharded)
     session.begin(state, nbrs, step0, n_total)
     bar = tqdm(total=n_total, initial=step0, disable=not progress, desc=desc, unit="step",
                mininterval=2.0, dynamic_ncols=True)
@@ -192,13 +180,13 @@ class _Session:
     and step; the frames recorded (with those of earlier sessions); the particle order; the timings."""
 
     def __init__(self, solver, write_every: int, writer, u_limit: float, reorder_every: int,
-                 max_reallocations: int):
-        self.solver, self.write_every, self.writer = solver, write_every, writer
+                 max_reallocations: int, sharded=None):
+        self.solver, self.write_every, self.writer, self.sharded = solver, write_every, writer, sharded
         self.u_limit, self.reorder_every, self.max_reallocations = u_limit, reorder_every, max_reallocations
         guard = solver.guard.with_limit(u_limit) if solver.guard is not None else None
-        self.chunk = _CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
+        self.chunk = CompiledChunk(jax.jit(make_chunk(solver.step_fn, write_every, guard=guard)))
         self.movable = reorder.movable_mask(solver.scene) if reorder_every else None
-        self.rebuild = _CompiledChunk(jax.jit(solver.neighbors.update)) if reorder_every else None
+        self.rebuild = CompiledChunk(jax.jit(solver.neighbors.update)) if reorder_every else None
         self.diag_fn = jax.jit(partial(diagnostics.summary, rho_ref=solver.scene.material.rho_ref))
         self.frames = {k: [] for k in SERIES}
         self.wall_prev, self.realloc_prev = 0.0, 0  # of the earlier sessions of a resumed run
@@ -211,7 +199,8 @@ class _Session:
     def compile_s(self) -> float:
         """Compilation time so far: diagnostics, chunk and list rebuild."""
         rebuild_s = self.rebuild.compile_s if self.rebuild is not None else 0.0
-        return self.diag_compile_s + self.chunk.compile_s + rebuild_s
+        sharded_s = self.sharded.compile_s if self.sharded is not None else 0.0
+        return self.diag_compile_s + self.chunk.compile_s + rebuild_s + sharded_s
 
     def begin(self, state, nbrs, step0: int, n_total: int):
         """Start at `state` (the scene's order) at global step `step0`: the earlier frames read back,
@@ -233,7 +222,9 @@ class _Session:
         elif not self.frames["step"]:
             self._append_frame(step0, d0)
         # Compile without advancing: lower + compile fills the cache that the calls hit.
-        if step0 < n_total:
+        if step0 < n_total and self.sharded is not None:
+            self.sharded.start(state)  # the single-device chunk compiles only if a bad chunk is located
+        elif step0 < n_total:
             self.chunk.compile(state, nbrs, step0, min(self.write_every, n_total - step0))
             if self.rebuild is not None:
                 self.rebuild.compile(state.r, nbrs)
@@ -284,12 +275,12 @@ class _Session:
         self._reorder_if_due()
         done, error = self._try_chunk(n)
         self.wall += time.perf_counter() - t0 - (self.compile_s - c0)
-        if done is None or _is_bad(done[3], self.u_limit):
+        if done is None or is_bad(done[3], self.u_limit):
             if self.order is not None:
                 self.state, self.order, self.since = reorder.restore(self.state, self.order), None, 0
                 self.nbrs = self.solver.neighbors.allocate(self.state.r)
                 return None
-            raise _locate_blowup(self.solver, self.chunk, self.diag_fn, self.state, self.nbrs, self.step, n,
+            raise locate_blowup(self.solver, self.chunk, self.diag_fn, self.state, self.nbrs, self.step, n,
                                  self.writer, error, self.u_limit)
         self.state, self.nbrs, r, d = done
         self.reallocs += r
@@ -311,13 +302,16 @@ class _Session:
         guard refused a step in a permuted order or the list kept overflowing; a guard's refusal in
         the scene's order is raised at once, naming where the last good frame is kept."""
         try:
-            state, nbrs, r = advance(self.chunk, self.solver.neighbors, self.state, self.nbrs, self.step, n,
-                                     self.max_reallocations)
+            if self.sharded is not None:
+                (state, r), nbrs = self.sharded.advance(self.step, n), self.nbrs
+            else:
+                state, nbrs, r = advance(self.chunk, self.solver.neighbors, self.state, self.nbrs, self.step, n,
+                                         self.max_reallocations)
             jax.block_until_ready(state)
             return (state, nbrs, r, self._diagnostics(state)), None
         except SimulationError as e:  # the guard refused a step (diagnosed), or overflow kept recurring
             if self.order is None:
-                raise _with_checkpoint(e, self.solver, self.step, self.writer) from None
+                raise with_checkpoint(e, self.solver, self.step, self.writer) from None
             return None, e
         except RuntimeError as e:  # repeated neighbour overflow without a guard
             return None, e
@@ -325,6 +319,8 @@ class _Session:
     def result(self, step0: int) -> RunResult:
         """The run's frames and timings, its state and list back in the scene's order."""
         state, nbrs = self.state, self.nbrs
+        if self.sharded is not None:  # the global list was not kept up to date on the devices
+            nbrs = self.solver.neighbors.allocate(state.r)
         if self.order is not None:
             state = reorder.restore(state, self.order)
             nbrs = _rebuilt(self.solver.neighbors, self.rebuild, state.r, nbrs)
@@ -334,7 +330,8 @@ class _Session:
                          compile_s=self.compile_s, n_steps=self.step - step0, n_reallocations=self.reallocs,
                          wall_s_total=self.wall_prev + self.wall,
                          n_reallocations_total=self.realloc_prev + self.reallocs, step_end=self.step,
-                         write_every=self.write_every, state=state, nbrs=nbrs, n_reorders=self.n_reorders)
+                         write_every=self.write_every, state=state, nbrs=nbrs, n_reorders=self.n_reorders,
+                         decomposition=self.sharded.describe() if self.sharded is not None else None)
 
 
 def _rebuilt(neighbors, rebuild, r, nbrs):
@@ -344,45 +341,3 @@ def _rebuilt(neighbors, rebuild, r, nbrs):
     stale = dataclasses.replace(nbrs, reference_position=r.at[0, 0].add(shift))
     new = rebuild(r, stale)
     return neighbors.allocate(r) if bool(new.did_buffer_overflow) else new
-
-
-def _is_bad(d: dict, u_limit: Optional[float]) -> bool:
-    return int(d["first_nonfinite"]) >= 0 or (u_limit is not None and float(d["u_max"]) > u_limit)
-
-
-def _with_checkpoint(err: SimulationError, solver, step: int, writer) -> SimulationError:
-    """`err` with the note where the last good frame (`step`, the start of the chunk) is kept."""
-    if writer is None:
-        return err
-    out = type(err)(f"{err}; the last good frame (step {step}, t={step * solver.dt:.6g}) is kept in the "
-                    f"checkpoint of {writer.path}")
-    out.__dict__.update(err.__dict__)
-    return out
-
-
-def _locate_blowup(solver, chunk, diag_fn, state, nbrs, step, n, writer, error, u_limit) -> RuntimeError:
-    """The chunk from the good `state` at `step` went bad within `n` steps: bisect for the first bad
-    step, take it once more unguarded and name the first offending particle (`StepGuard.diagnose`)."""
-
-    def advance_ok(m):
-        try:
-            s, nb, _ = advance(chunk, solver.neighbors, state, nbrs, step, m)
-        except RuntimeError:
-            return None
-        return None if _is_bad(diag_fn(s), u_limit) else (s, nb)
-
-    lo, hi = 0, n  # after lo steps good, after hi steps not
-    good = (state, nbrs)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        res = advance_ok(mid)
-        if res is None:
-            hi = mid
-        else:
-            lo, good = mid, res
-    s_good, nb_good = good
-    bad_step = step + lo + 1
-    guard = solver.guard.with_limit(u_limit)
-    err = guard.diagnose(s_good, nb_good, bad_step, why=str(error) if error is not None else "")
-    err.__cause__ = error
-    return _with_checkpoint(err, solver, step, writer)

@@ -1,7 +1,7 @@
 """`build_solver`: a scene and its numerics in, `init_fn` / `step_fn` out (jax-md style).
 
     constants = derive(scene, numerics)               kernel, EoS, c_ref, p_b, body force, dt
-    refuse what cannot give a correct result          sph.checks (resolution, memory; dt warning)
+    refuse what cannot give a correct result          sph.checks (resolution; dt warning), sph.memory
     passes = choose_passes(scene, numerics, c)        sph.registry: the ordered pass list of the effects
     state_at, step_fn                                 sph.step: kick, drift, neighbours, the passes in order
 
@@ -18,12 +18,13 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from .checks import (InsufficientMemory, StartInvariants, UnstableTimeStep, check_memory,  # noqa: F401
-                     check_resolution, check_start, neighbour_slots, warn_fixed_dt)
+from .checks import UnstableTimeStep, check_resolution, warn_fixed_dt  # noqa: F401  (sph.solver.UnstableTimeStep)
+from .memory import InsufficientMemory, check_memory, neighbour_slots  # noqa: F401  (sph.solver.InsufficientMemory)
+from .start_checks import StartInvariants, check_start
 from .blocks import evaluate
 from .config import Numerics
 from .constants import derive
-from .diagnostics import StepGuard
+from .guard import StepGuard
 from .neighbors import NeighborSearch, make_neighbor_search
 from .passes import Context
 from .registry import choose_passes

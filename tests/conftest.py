@@ -15,13 +15,19 @@ _ROOT = _TESTS.parent
 # run scripts, .venv-lb): many tests run the same smoke programs in fresh processes (a second make
 # into another results folder, -j2 against serial, a repaired output made again), and compilation
 # is most of a smoke test's time. The cache is keyed on the program, the backend and XLA's flags,
-# so a hit is the same executable. SPH_TEST_JAX_CACHE=0 turns it off.
+# so a hit is the same executable. SPH_TEST_JAX_CACHE=0 turns it off. Every program is cached, however
+# quickly it compiled: a .venv-lb process (make's train / evaluate of the SitL tests, dozens per run)
+# compiles many small programs at start-up, and reading them back instead saved 1.7-2.6 s of its
+# 11-15 s of CPU (smoke train.py, evaluate.py, warm cache; 2026-12-06) against a 0.2 s threshold,
+# at no measurable cost on a cold cache.
 if os.environ.get("SPH_TEST_JAX_CACHE", "1") != "0":
     os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_ROOT / ".pytest_cache" / "jax-compilation-cache"))
-    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 for _p in (str(_ROOT), str(_TESTS)):
     if _p not in sys.path:
         sys.path.insert(0, _p)
+
+import pytest  # noqa: E402
 
 import sph  # noqa: E402,F401
 from sph import xla_cpu  # noqa: E402
@@ -31,10 +37,22 @@ xla_cpu.set_cpu_defaults()
 sph.precision.enable_x64()  # tests compare float64 results; sph itself leaves the flag alone
 
 
-# The longest test files first (seconds on the 2-core CI machine, 2026-12-04): with `--dist loadfile`
-# each file goes to one worker in collection order, so a long file collected last is a long tail.
-LONGEST_FIRST = ("test_sitl_pipeline.py", "test_sitl_study.py", "test_faults_make.py", "test_stability_pipeline.py",
-                 "test_report.py", "test_gradcheck_pipeline.py", "test_sitl_cost.py", "test_accuracy_atlas.py")
+# The longest test files first (seconds of one file alone on the 2-core CI machine, clean clone,
+# 2026-12-06): with `--dist loadfile` each file goes to the first free worker in this order, so a
+# long file taken last is a long tail. Longest first (LPT) keeps both workers busy to the end.
+LONGEST_FIRST = ("test_sitl_pipeline.py", "test_sitl_study.py", "test_sitl_model.py", "test_cell_list.py",
+                 "test_stability_pipeline.py", "test_faults_make.py", "test_gradcheck_pipeline.py",
+                 "test_ldc2d_pipeline.py", "test_parallel.py", "test_sitl_cost.py", "test_accuracy_atlas.py",
+                 "test_dambreak2d_pipeline.py", "test_faults.py", "test_gradients.py", "test_report.py",
+                 "test_tgv3d_pipeline.py", "test_surface_tension.py", "test_inverse_pipeline.py")
+
+
+def pytest_configure(config):
+    """Keep the order below under xdist: pytest-xdist >= 3.6 re-sorts the files of `--dist loadfile`
+    by their number of tests (`--loadscope-reorder`, on by default), which put the long SitL files
+    (few tests, minutes each) last and made them the tail of the run."""
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
 
 
 def pytest_collection_modifyitems(session, config, items):
@@ -42,3 +60,15 @@ def pytest_collection_modifyitems(session, config, items):
     keep their order (some build on the one before)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda it: rank.get(it.path.name, len(rank)))  # stable: the order within a file stays
+
+
+@pytest.fixture(scope="session")
+def sitl_smoke_dataset():
+    """The smoke RPF dataset folder (`make sitl-data PROFILE=smoke` into the tests' shared folder
+    SHARED_SMOKE), made once for every test file and xdist worker of the session: the first to ask
+    makes it under a file lock while the others wait, and later ones find it current (make checks
+    its recorded digests and fingerprint). Read-only for the tests: a test that changes data copies
+    it first (sph_test_helpers.seed_sitl_dataset)."""
+    import sph_test_helpers
+
+    return sph_test_helpers.shared_sitl_dataset()

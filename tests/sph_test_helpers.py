@@ -3,7 +3,11 @@ and copies of an experiment folder (a folder is a template) with a smaller smoke
 
 Everything here only assembles inputs from the public pieces of `sph`; no expected values live here.
 """
+import fcntl
+import os
 import shutil
+import subprocess
+from contextlib import contextmanager
 from pathlib import Path
 
 import jax
@@ -23,8 +27,8 @@ from sph.state import FLUID
 UNIT_SQUARE = Domain(box=(1.0, 1.0), periodic=(True, True))
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_SMOKE = ROOT / ".pytest_cache" / "shared-results" / "smoke"
-"""The SitL smoke results the tests make once and share (dataset, trained models): the tests' own
-folder, never the repository's results/smoke."""
+"""The SitL smoke dataset the tests make once and share (shared_sitl_dataset): the tests' own folder,
+never the repository's results/smoke."""
 
 
 def require_lb_env() -> None:
@@ -35,13 +39,52 @@ def require_lb_env() -> None:
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
 
 
+def sitl_env() -> dict:
+    """The environment the SitL tests run make and .venv-lb in (CPU, no wandb, no user site)."""
+    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
+    env.pop("VIRTUAL_ENV", None)
+    return env
+
+
+@contextmanager
+def _shared_lock():
+    """An exclusive lock on the shared smoke folder, across the xdist workers of a session and across
+    sessions in one checkout (fcntl: released when the process ends, however it ends)."""
+    SHARED_SMOKE.parent.mkdir(parents=True, exist_ok=True)
+    with (SHARED_SMOKE.parent / ".smoke.lock").open("a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+_SHARED_MADE = []
+
+
+def shared_sitl_dataset() -> Path:
+    """The smoke RPF dataset in SHARED_SMOKE, made by `make sitl-data PROFILE=smoke` once per process
+    under the shared lock: the first worker of a session generates it, the others wait and then find
+    it current (make checks its fingerprint and the digests it recorded, and regenerates a stale or
+    damaged one). The tests only read it; one that changes data works on a copy (seed_sitl_dataset)."""
+    data = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
+    if not _SHARED_MADE:
+        require_lb_env()
+        with _shared_lock():
+            proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke", f"RESULTS={SHARED_SMOKE}"], cwd=ROOT,
+                                  env=sitl_env(), capture_output=True, text=True, timeout=1800)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        _SHARED_MADE.append(data)
+    return data
+
+
 def seed_sitl_dataset(results) -> None:
-    """Copy the shared smoke RPF dataset (SHARED_SMOKE) into `results` when there is one, so that a test
-    file need not generate it again; make checks the copy against the digests generate.json recorded
-    (another file may be writing it) and regenerates a damaged one."""
-    shared = SHARED_SMOKE / "sitl" / "data" / "2D_RPF"
-    if (shared / "generate.json").exists():
-        shutil.copytree(shared, Path(results) / "sitl" / "data" / "2D_RPF")
+    """Copy the shared smoke RPF dataset (shared_sitl_dataset, made first if need be) into `results`,
+    so that a test file need not generate it again; make checks the copy against the digests
+    generate.json recorded, as any dataset."""
+    shared = shared_sitl_dataset()
+    with _shared_lock():
+        shutil.copytree(shared, Path(results) / "sitl" / "data" / "2D_RPF", ignore=shutil.ignore_patterns("*.stale-*"))
 
 
 def lattice(dx, dim=2):

@@ -7,9 +7,9 @@ width of its faces (cutoff + skin, the reach of the neighbour list), so that eve
 owned particle is present on its device, as in the domain decomposition of molecular dynamics
 (GROMACS, LAMMPS: "ghost" atoms). A periodic cut axis wraps: slab 0 and slab D-1 are neighbours.
 
-Refusals: a slab narrower than the halo width (a pair would then reach two slabs over), and, for
-two slabs on a periodic axis (where both neighbours are the same device), a slab narrower than two
-halo widths (a particle would be a halo copy twice); the error names the largest D that works.
+Refusal: a slab narrower than the halo width (a pair would then reach two slabs over); the error
+names the largest D that works. Two slabs on a periodic axis (both neighbours the same device) need
+no more: a particle within the halo width of both faces is sent once (`sph.parallel.halo.build`).
 """
 import math
 from dataclasses import dataclass
@@ -40,8 +40,7 @@ class Decomposition:
         if self.devices > 1 and self.width < self.min_width:
             raise ConfigError(
                 f"devices: {self.devices} slabs along axis {self.axis} (side {self.side:g}) are {self.width:g} wide, "
-                f"narrower than {'two halo widths' if self.min_width > self.halo else 'the halo width'} "
-                f"{self.min_width:g} (cutoff + skin = {self.halo:g}); the largest D that works is "
+                f"narrower than the halo width {self.min_width:g} (cutoff + skin); the largest D that works is "
                 f"{self.largest_devices(self.side, self.periodic, self.halo)}")
 
     @property
@@ -51,16 +50,13 @@ class Decomposition:
 
     @property
     def min_width(self) -> float:
-        """The narrowest slab that works: the halo width, two of them for D = 2 on a periodic axis."""
-        return 2.0 * self.halo if (self.devices == 2 and self.periodic) else self.halo
+        """The narrowest slab that works: the halo width."""
+        return self.halo
 
     @staticmethod
     def largest_devices(side: float, periodic: bool, halo: float) -> int:
         """The largest D whose slabs are wide enough (1 if none is)."""
-        d = max(1, int(math.floor(side / halo * (1.0 + 1e-12))))
-        if d == 2 and periodic and side / 2 < 2 * halo:
-            d = 1
-        return d
+        return max(1, int(math.floor(side / halo * (1.0 + 1e-12))))
 
     def slab_of(self, x):
         """Slab index of coordinates `x` along the cut axis (jnp or numpy): floor(x / w), wrapped on a

@@ -39,7 +39,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from ..cell_list import CellNeighborList, make_cell_list
 from ..constants import derive
-from ..diagnostics import SimulationError
+from ..errors import SimulationError
 from ..errors import ConfigError
 from ..fields import Fields
 from ..passes import Context

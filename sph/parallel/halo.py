@@ -145,8 +145,14 @@ def build(decomp, axis_name: str, r, valid, capacity: int):
     lo = k.astype(r.dtype) * decomp.width
     hi = (k + 1).astype(r.dtype) * decomp.width
     reach = decomp.halo * (1.0 + 1e-9)   # a hair wide: a pair at exactly cutoff + skin is never cut
-    down_idx, down_ok, n_down = pick(valid & (x - lo < reach), capacity)
-    up_idx, up_ok, n_up = pick(valid & (hi - x < reach), capacity)
+    near_down = valid & (x - lo < reach)
+    near_up = valid & (hi - x < reach)
+    if decomp.devices == 2 and decomp.periodic:
+        # both neighbours are the one other device: a particle near both faces (a slab narrower than two
+        # halo widths) goes once, with the lower face's copies; the minimum image makes it serve both sides
+        near_up = near_up & ~near_down
+    down_idx, down_ok, n_down = pick(near_down, capacity)
+    up_idx, up_ok, n_up = pick(near_up, capacity)
     from_down = permute(up_ok, axis_name, decomp.perm(+1))
     from_up = permute(down_ok, axis_name, decomp.perm(-1))
     return Halo(down_idx, up_idx, down_ok, up_ok, from_down, from_up), jnp.maximum(n_down, n_up)

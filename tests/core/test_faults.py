@@ -27,11 +27,12 @@ from lab import io
 from sph.cases import ldc, tgv
 from lab.cli import EXIT_CONFIG, EXIT_SIMULATION, main_guard
 from lab.configtools import ConfigError, from_mapping, load_profile
-from sph.diagnostics import BlowUp, NeighborOverflow, ParticleEscaped, SimulationError
+from sph.errors import BlowUp, NeighborOverflow, ParticleEscaped, SimulationError
 from sph.domain import Domain
 from sph.lattice import cartesian
 from sph.scene import Scene
-from sph.checks import InsufficientMemory, UnstableTimeStep
+from sph.checks import UnstableTimeStep
+from sph.memory import InsufficientMemory
 from sph.state import FLUID
 from sph_test_helpers import copied_experiment
 
@@ -251,7 +252,7 @@ def test_huge_scene_is_refused_before_allocating():
 
 
 def test_build_solver_estimates_memory(monkeypatch):
-    import sph.checks as S
+    import sph.memory as S
 
     monkeypatch.setattr(S, "available_memory", lambda: (10**6, "available host memory"))
     with pytest.raises(InsufficientMemory, match=r"400 particles \(dx = 0.05\) with \d+ neighbour slots .* need at least"):

@@ -19,7 +19,7 @@ import sph
 from sph import reorder, simulate
 from lab import io
 from sph.cases import ldc, tgv
-from sph.diagnostics import BlowUp
+from sph.errors import BlowUp
 from sph.domain import Domain
 from sph.lattice import cartesian, jitter
 from sph.scene import Scene

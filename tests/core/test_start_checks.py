@@ -1,4 +1,4 @@
-"""Physical invariants checked at the start (sph.checks.check_start), not a spacing range: every
+"""Physical invariants checked at the start (sph.start_checks.check_start), not a spacing range: every
 start whose summation density or kernel consistency is wrong is refused before step 1 with one line
 naming the key, and the value it suggests builds. Each case below ran silently before (issue 38:
 density 1.56, 0.64 and 2.78 rho_ref, a run at density 0.3-0.6 without neighbours, a cavity at
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sph
-from sph import checks
+from sph import start_checks as checks
 from sph.cases import droplet, ldc, tank, tgv, tgv3d
 from sph.lattice import jitter
 
@@ -70,7 +70,7 @@ def test_a_kernel_too_small_is_refused_however_many_neighbours_it_reaches(h_fact
 def test_legitimate_starts_pass():
     """A jittered lattice (0.25 dx, JAX-SPH's relaxation noise), a free-surface column in a tank, a
     droplet's lattice and a 3D lattice: each within the tolerances, with the margins stated in
-    sph.checks (DENSITY_TOLERANCE, GRADIENT_TOLERANCE)."""
+    sph.start_checks (DENSITY_TOLERANCE, GRADIENT_TOLERANCE)."""
     sc = tgv.scene(0.05, MAT, sph.Effects())
     _start(dataclasses.replace(sc, r=jitter(sc.r, 0.25 * sc.dx, seed=1, box=sc.domain.box)))
     _start(tank.scene(0.05, sph.Material(eta=1e-4, u_ref=1.4), tank.DAM_BREAK_EFFECTS, width=2.0, height=1.0,

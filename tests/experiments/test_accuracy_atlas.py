@@ -3,23 +3,33 @@ outputs are written, and what they claim follows from the run records by an inde
 (Pareto front by brute force, cheapest run per error level, fitted orders of known power laws)."""
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
 import sph
-from experiments.accuracy import atlas as A
-from experiments.accuracy import run as R
-from experiments.accuracy import settings as S
+from experiments.accuracy import plot_accuracy as A
+from experiments.accuracy import study as S
 from lab import record
+from lab.experiment import Experiment, load_settings
+
+FOLDER = Path(S.__file__).parent
+
+
+def load(profile, overrides=None):
+    """The atlas's settings (the study's Settings through the harness)."""
+    return load_settings(FOLDER, profile, overrides)
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     results = tmp_path_factory.mktemp("results")
-    atlas = S.load("smoke")
-    n = R.run_sweep(atlas, results, progress=False)
+    exp = Experiment(FOLDER, "smoke", results)
+    atlas = exp.settings
+    exp.run_all(progress=False)  # the sweep: the study's parts, tgv2d per kernel and dtype
+    n = len(exp.runs)
     # a cavity record as its own experiment writes it (lab.record), gathered without re-running
     cav = results / "ldc2d" / "tvf_dx0.02"
     cav.mkdir(parents=True)
@@ -27,6 +37,7 @@ def built(tmp_path_factory):
         {"experiment": "ldc2d", "target": "fig6", "method": "tvf", "kernel": "quintic", "dx": 0.02, "dim": 2,
          "dtype": "float64", "n_particles": 2500, "n_steps": 100, "wall_s": 12.0, "err_ghia_rms": 0.0066}))
     out = A.build(atlas, results)
+    assert out == results / "accuracy"
     return atlas, n, out, pd.read_csv(out / "runs.csv")
 
 
@@ -124,16 +135,16 @@ def test_checkpointing_section_compares_each_strategy_with_the_plain_gradient(tm
 def test_kernel_entries_with_their_own_smoothing_length():
     """A sweep kernel "name@factor" runs tgv2d with numerics.h_factor = factor, into its own folder;
     a bad entry fails naming the key."""
-    atlas = S.load("smoke", overrides={"tgv": {"kernels": ["quintic", "wendland_c2@1.5"]}})
-    exp = R.tgv_experiment(atlas, "wendland_c2@1.5", "float64")
+    atlas = load("smoke", overrides={"tgv": {"kernels": ["quintic", "wendland_c2@1.5"]}})
+    exp = S.tgv_experiment(atlas, "wendland_c2@1.5", "float64")
     assert exp.settings.numerics.kernel == "wendland_c2" and exp.settings.numerics.h_factor == 1.5
-    base = R.tgv_experiment(atlas, "quintic", "float64").settings.numerics.h_factor
+    base = S.tgv_experiment(atlas, "quintic", "float64").settings.numerics.h_factor
     assert base == 1.0
     assert S.tgv_results("r", "wendland_c2@1.5", "float32").name == "wendland_c2_h1.5_float32"
     assert S.tgv_results("r", "quintic", "float32").name == "quintic_float32"
     for bad in ("wendland_c2@", "wendland_c2@-1", "wendland_c2@x", "cubic@1.5"):
         with pytest.raises(sph.ConfigError, match=r"tgv\.kernels\[1\]"):
-            S.load("smoke", overrides={"tgv": {"kernels": ["quintic", bad]}})
+            load("smoke", overrides={"tgv": {"kernels": ["quintic", bad]}})
 
 
 def synthetic_runs(n_problems: int, seed: int = 0) -> pd.DataFrame:
@@ -192,7 +203,7 @@ def test_atlas_is_a_grid_readable_at_readme_width(n, grid):
     panel; no two texts (titles, labels, drawn tick labels, legend entries) overlap."""
     import matplotlib.pyplot as plt
 
-    atlas = S.load("smoke")
+    atlas = load("smoke")
     runs = synthetic_runs(n)
     tables = {name: A.problem_table(runs, atlas, name) for name in A.PROBLEMS}
     fig, panels = A.atlas_figure(tables)
@@ -226,7 +237,7 @@ def test_atlas_is_a_grid_readable_at_readme_width(n, grid):
 def test_one_marker_shape_per_kernel_and_one_colour_per_method():
     """Across the atlas's panels a kernel (with its smoothing length) has one marker shape, whatever
     its dtype or method, and no two kernels share one; a method one colour; the dtype only the fill."""
-    atlas = S.load("smoke")
+    atlas = load("smoke")
     runs = synthetic_runs(6)
     tables = [A.problem_table(runs, atlas, name) for name in A.PROBLEMS]
     styles = A.family_styles(pd.concat([t for t in tables if len(t)]))

@@ -150,18 +150,18 @@ def test_atlas_rows_are_exactly_the_current_runs(tmp_path):
                           tgv={"base_profile": "smoke", "methods": ["tvf"], "dx": [0.125, 0.1], "dtypes": ["float64"],
                                "kernels": ["quintic"], "t_end": 0.05, "frames": 5, "error": "u_max_mean"})
     results = tmp_path / "results"
-    make(results, "accuracy", ACCURACY=acc)
+    make(results, "accuracy", PROTOCOL_DIRS=acc)
     table = results / "accuracy" / "runs.csv"
     assert sorted(pd.read_csv(table)["dx"].round(6)) == [0.1, 0.125]
     cfg = yaml.safe_load((acc / "config.yaml").read_text())
     cfg["profiles"]["smoke"]["tgv"]["dx"] = [0.125]
     (acc / "config.yaml").write_text(yaml.safe_dump(cfg))
-    out = make(results, "accuracy", ACCURACY=acc).stdout
-    assert "tgv.done changed" in out
+    out = make(results, "accuracy", PROTOCOL_DIRS=acc).stdout
+    assert "runs.done changed" in out
     assert sorted(pd.read_csv(table)["dx"].round(6)) == [0.125]  # the dx 0.1 record is still on disk, not listed
     assert list((results / "accuracy").rglob("tvf_dx0.1/record.json"))
     table.write_text("experiment\n")  # truncated
-    out = make(results, "accuracy", ACCURACY=acc).stdout
+    out = make(results, "accuracy", PROTOCOL_DIRS=acc).stdout
     assert "runs.csv differs from what was made" in out and len(pd.read_csv(table)) == 1
-    out = make(results, "accuracy", ACCURACY=acc).stdout
+    out = make(results, "accuracy", PROTOCOL_DIRS=acc).stdout
     assert "up to date with its runs" in out

@@ -1,7 +1,8 @@
 """End-to-end gradient-check pipeline (gradcheck/, JAX-SPH Fig. 1) on the smoke profile in float64:
 10 x 10 fluid lattice (dx = 0.1), Taylor-Green vortex and lid-driven cavity (walls inside the
 gradient), 10 warm-up steps, d E_kin(5 more steps) / d r by jax.grad against central differences of
-every fluid coordinate, the eps sweep, the gradient norm after 1 and 30 steps, both figures.
+every fluid coordinate, the eps sweep, the gradient norm after 1 and 30 steps, both figures; the runs are
+the study's (gradcheck/study.py), computed and cached by the harness (lab.experiment `compute`).
 
 The smoke profile also runs float32; the test keeps float64 only (dtypes override) to stay within
 its time budget. Independent reasons behind the bounds:
@@ -11,31 +12,43 @@ its time budget. Independent reasons behind the bounds:
 - the periodic Taylor-Green vortex is invariant under a uniform translation of all particles (with
   their velocities), so the gradient summed over particles vanishes: sum_i dE/dr_i = 0.
 """
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 
+from gradcheck import plot_fig1 as P1
+from gradcheck import plot_grad_norm_vs_steps as P2
 from lab.configtools import ConfigError
-from gradcheck import plot as P
-from gradcheck import run as R
-from gradcheck import settings as S
+from lab.experiment import Experiment, load_settings
 
+FOLDER = Path(P1.__file__).resolve().parent
 OVERRIDES = {"dtypes": ["float64"], "fig1_dtypes": ["float64"]}
 
 
 @pytest.fixture(scope="module")
 def done(tmp_path_factory):
-    exp = S.load("smoke", overrides=OVERRIDES)
+    """(settings, results, metrics.csv, grad_growth.csv, the harness's Experiment); the figures in <results>/fig1."""
     results = tmp_path_factory.mktemp("gradcheck_smoke")
-    table = R.check_all(exp, results)
-    growth = R.growth_all(exp, results)
-    P.plot_fig1(exp, results)
-    P.plot_growth(exp, results)
-    return exp, results, table, growth
+    ex = Experiment(FOLDER, "smoke", results, overrides=OVERRIDES)
+    ex.run_all(progress=False)
+    fig = results / "fig1"
+    fig.mkdir()
+    P1.plot(ex, fig)
+    P2.plot(ex, fig)
+    table = pd.read_csv(ex.metrics_path)
+    growth = pd.read_csv(ex.out_dir / "grad_growth.csv")
+    return ex.settings, results, table, growth, ex
+
+
+def check(results, case, dtype):
+    with np.load(Path(results) / "gradcheck" / f"{case}_{dtype}" / "check.npz") as z:
+        return {k: z[k] for k in z.files}
 
 
 def test_ad_matches_central_differences_in_float64(done):
-    exp, results, table, _ = done
+    exp, results, table, _, _ = done
     assert exp.dx == 0.1 and exp.eps == pytest.approx(1e-4)
     assert list(table["case"]) == ["tgv", "ldc"] and set(table["dtype"]) == {"float64"}
     for _, row in table.iterrows():
@@ -50,21 +63,20 @@ def test_ad_matches_central_differences_in_float64(done):
 
 
 def test_taylor_green_gradient_is_translation_invariant(done):
-    _, results, _, _ = done
-    with np.load(S.check_path(results, "tgv", "float64")) as z:
-        g_ad, g_fd = z["g_ad"], z["g_fd"]
+    _, results, _, _, _ = done
+    z = check(results, "tgv", "float64")
+    g_ad, g_fd = z["g_ad"], z["g_fd"]
     scale = np.linalg.norm(g_ad)
     assert np.all(np.abs(g_ad.sum(axis=0)) < 1e-10 * scale)
     assert np.all(np.abs(g_fd.sum(axis=0)) < 1e-6 * scale)  # FD rounding, summed over 100 particles
     # the cavity is not invariant: its walls and lid fix the frame
-    with np.load(S.check_path(results, "ldc", "float64")) as z:
-        g = z["g_ad"]
+    g = check(results, "ldc", "float64")["g_ad"]
     assert np.linalg.norm(g.sum(axis=0)) > 1e-3 * np.linalg.norm(g)
 
 
 def test_eps_sweep_shows_second_order_truncation(done):
-    exp, results, _, _ = done
-    sweep = pd.read_csv(S.sweep_path(results))
+    exp, results, _, _, _ = done
+    sweep = pd.read_csv(results / "fig1" / "sweep.csv")
     for case in ("tgv", "ldc"):
         sel = sweep[sweep["case"] == case].set_index("eps_factor")["rel_l2"]
         assert sel.index.size == len(exp.sweep_eps_factors)
@@ -76,7 +88,7 @@ def test_eps_sweep_shows_second_order_truncation(done):
 
 
 def test_gradient_norms_finite_for_every_length(done):
-    exp, results, _, growth = done
+    exp, results, _, growth, _ = done
     assert list(growth["n_steps"]) == list(exp.growth.steps) * 2 and max(growth["n_steps"]) <= 30
     assert np.all(np.isfinite(growth["grad_norm"])) and np.all(growth["grad_norm"] > 0)
     assert np.all(np.isfinite(growth["loss"]))
@@ -86,8 +98,8 @@ def test_gradient_norms_finite_for_every_length(done):
 
 
 def test_outputs_exist_with_expected_columns(done):
-    _, results, _, _ = done
-    fig = S.fig_dir(results)
+    _, results, _, _, _ = done
+    fig = results / "fig1"
     for name in ("fig1.png", "fig1.pdf", "metrics.csv", "sweep.csv", "grad_norm_vs_steps.png",
                  "grad_norm_vs_steps.csv"):
         assert (fig / name).stat().st_size > 0, name
@@ -97,11 +109,16 @@ def test_outputs_exist_with_expected_columns(done):
 
 
 def test_unchanged_check_is_skipped(done, capsys):
-    exp, results, _, _ = done
-    before = S.check_path(results, "tgv", "float64").stat().st_mtime_ns
-    R.check_one(exp, exp.case("tgv"), "float64", results)
+    _, results, _, _, ex = done
+    path = results / "gradcheck" / "tgv_float64" / "check.npz"
+    before = path.stat().st_mtime_ns
+    assert ex.run_one(ex.run("tgv_float64"), progress=False).status == "skipped"
     assert "skipped" in capsys.readouterr().out
-    assert S.check_path(results, "tgv", "float64").stat().st_mtime_ns == before
+    assert path.stat().st_mtime_ns == before
+    # a run whose inputs changed is not current: the figures refuse it until it is computed again
+    other = Experiment(FOLDER, "smoke", results, overrides={**OVERRIDES, "warmup_steps": 9})
+    assert other.state(other.run("tgv_float64")) == "stale"
+    assert other.state(other.run("growth_tgv_n1")) == "current"  # the warm-up is no input of a growth run
 
 
 @pytest.mark.parametrize("override, key", [
@@ -113,4 +130,4 @@ def test_unchanged_check_is_skipped(done, capsys):
 ])
 def test_config_errors_name_the_key(override, key):
     with pytest.raises(ConfigError, match=key.replace("[", r"\[").replace("]", r"\]")):
-        S.load("smoke", overrides=override)
+        load_settings(FOLDER, "smoke", overrides=override)

@@ -20,7 +20,7 @@ FOLDERS = sorted([p.relative_to(ROOT).as_posix() for p in (ROOT / "experiments")
                   if p.is_dir() and not p.name.startswith((".", "_"))] + ["gradcheck", "inverse", "sitl"])
 """Every experiment folder of the repository."""
 
-NOT_MIGRATED = ("experiments/accuracy", "experiments/stability", "gradcheck", "inverse", "sitl")
+NOT_MIGRATED = ("sitl",)
 STUDY_NAMES = ("Settings", "runs", "scene", "metrics")
 
 

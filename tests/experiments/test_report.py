@@ -169,12 +169,13 @@ def test_a_target_without_outputs_has_no_numbers(smoke):
 
 
 # -- make all ----------------------------------------------------------------------------------------
-SCRIPTS = [("fig1", "gradcheck/run.py"), ("fig2", "inverse/run.py"), ("fig4", "experiments/tgv2d/plot_fig4.py"),
+SCRIPTS = [("fig1", "gradcheck/plot_fig1.py"), ("fig2", "inverse/plot_fig2.py"), ("fig4", "experiments/tgv2d/plot_fig4.py"),
            ("fig5", "experiments/tgv2d/plot_fig5.py"), ("fig6", "experiments/ldc2d/plot_fig6.py"),
            ("fig7", "experiments/ldc2d/plot_fig7.py"),
            ("fig8", "experiments/dambreak2d/plot_fig8.py"), ("fig9", "experiments/tgv3d/plot_fig9.py"),
            ("fig10", "experiments/thermal/plot_fig10.py"), ("table1", "sitl/table1.py"), ("fig3", "sitl/plot_fig3.py"),
-           ("stability", "experiments/stability/run.py"), ("accuracy", "experiments/accuracy/atlas.py"),
+           ("stability", "experiments/stability/plot_stability.py"),
+           ("accuracy", "experiments/accuracy/plot_accuracy.py"),
            ("report", "-m report.build")]
 
 

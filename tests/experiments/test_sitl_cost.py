@@ -13,8 +13,8 @@ its dt, started with the consistent velocity) is the floor, far below the same i
 with the lagging one (M = 1). Coarsening itself costs no accuracy here: the smoke flow is near
 steady and c Delta t / h = 2 is still stable over 20 frames. The cost falls with M (fewer substeps).
 
-Shares the smoke dataset of the tests' shared folder (SHARED_SMOKE) when there is one (copied with its times, so make
-regenerates it here if it is stale); never trains, so GNS / SitL are left out. FAILS, not skips,
+Copies the tests' shared smoke dataset (sph_test_helpers.shared_sitl_dataset, made once per session; make
+checks the copy against its recorded digests); never trains, so GNS / SitL are left out. FAILS, not skips,
 when .venv-lb is missing."""
 import csv
 import json
@@ -28,11 +28,11 @@ import pytest
 
 from sph_test_helpers import require_lb_env, seed_sitl_dataset
 
-from experiments.accuracy import atlas as A
-from experiments.accuracy import settings as AS
+from experiments.accuracy import plot_accuracy as A
 from sitl import settings as S
 from lab import record
 from lab.configtools import ConfigError
+from lab.experiment import load_settings
 
 ROOT = Path(__file__).resolve().parents[2]
 SOLVER_M = (1, 2, 5, 10)        # the smoke profile's cost.coarsening; write_every W = 10
@@ -120,7 +120,7 @@ def test_cost_per_coarse_step_falls_with_M(cost):
 
 def test_records_are_gathered_by_the_atlas(cost):
     results, rows, _ = cost
-    atlas = AS.load("smoke")
+    atlas = load_settings(ROOT / "experiments" / "accuracy", "smoke")
     assert "sitl" in atlas.gather
     runs = A.gather(atlas, results)
     sitl = runs[runs["experiment"] == "sitl"]
@@ -169,7 +169,7 @@ def test_atlas_reads_only_the_current_points(cost):
     stray = cdir / "solver_M7"
     shutil.copytree(cdir / "solver_M2", stray)
     try:
-        runs = A.gather(AS.load("smoke"), results)
+        runs = A.gather(load_settings(ROOT / "experiments" / "accuracy", "smoke"), results)
         folders = set(runs[runs["experiment"] == "sitl"]["folder"].map(lambda f: Path(f).name))
         assert folders == set(rows), folders
     finally:

@@ -4,7 +4,12 @@ weights -> L SPH substeps -> output) agrees with central finite differences alon
 direction (float64); the untrained SitL (last layer zero) equals the solver alone on a batch; its
 graph equals LagrangeBench's own; evaluation windows come from every seed; the solver's reaction to
 training noise (sitl/noise_response.py) is linear and of the expected size. FAILS, not skips, when
-.venv-lb is missing."""
+.venv-lb is missing.
+
+Each check is a script of its own, run in .venv-lb; the scripts of one dtype share one process (one
+import of LagrangeBench and JAX instead of one per test: most of a script's time), each in a fresh
+namespace with its own argv, its output and any exception kept apart, so each test still judges
+exactly its own script's output."""
 import json
 import os
 import subprocess
@@ -13,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from sph_test_helpers import seed_sitl_dataset
+from sph_test_helpers import require_lb_env
 
 ROOT = Path(__file__).resolve().parents[2]
 LB_PYTHON = ROOT / ".venv-lb" / "bin" / "python"
@@ -254,28 +259,74 @@ _NOISE = textwrap.dedent(
 )
 
 
-def _run(script: str, dtype: str, *args) -> dict:
-    if not LB_PYTHON.exists() or not (ROOT / ".venv-lb" / ".stamp").exists():
+_DRIVER = textwrap.dedent(
+    """
+    import contextlib, io, json, sys, traceback
+    jobs = json.loads(sys.stdin.read())
+    results = {}
+    for key, script, argv in jobs:
+        sys.argv = ["-c", *argv]
+        out = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(out):
+                exec(compile(script, f"<{key}>", "exec"), {"__name__": "__main__"})
+            results[key] = {"stdout": out.getvalue()}
+        except BaseException:
+            results[key] = {"stdout": out.getvalue(), "error": traceback.format_exc()}
+    print(json.dumps(results))
+    """
+)
+
+
+def _run_all(jobs) -> dict:
+    """Run the scripts `jobs` ((key, script, argv) each, argv[0] the dtype) in one .venv-lb process,
+    one after the other, each as `python -c script *argv` would run it; {key: stdout, error}."""
+    if not LB_PYTHON.exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
+    require_lb_env()
     env = dict(os.environ, PYTHONPATH=str(ROOT), JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1", WANDB_MODE="disabled")
     env.pop("VIRTUAL_ENV", None)
-    proc = subprocess.run([str(LB_PYTHON), "-c", script, dtype, *map(str, args)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=900)
+    proc = subprocess.run([str(LB_PYTHON), "-c", _DRIVER], input=json.dumps(jobs), cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stderr[-4000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def _result(results: dict, key: str) -> dict:
+    """A script's output line (its last), or its failure as the test's."""
+    r = results[key]
+    assert "error" not in r, r["error"][-4000:]
+    return json.loads(r["stdout"].strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def float64_runs(sitl_smoke_dataset):
+    """The float64 scripts (jax_enable_x64 on for the whole process), in one process."""
+    return _run_all([("solver_only", _SOLVER_ONLY, ["float64"]), ("gradient", _GRADIENT, ["float64"]),
+                     ("noise", _NOISE, ["float64", str(sitl_smoke_dataset)])])
+
+
+@pytest.fixture(scope="module")
+def float32_runs(sitl_smoke_dataset, tmp_path_factory):
+    """The float32 scripts (x64 never enabled), in one process."""
+    return _run_all([("solver_only", _SOLVER_ONLY, ["float32"]), ("zero_init", _ZERO_INIT, ["float32", ""]),
+                     ("zero_init:solver_acc,substep", _ZERO_INIT, ["float32", "solver_acc,substep"]),
+                     ("edges", _EDGES, ["float32", str(sitl_smoke_dataset)]),
+                     ("interleaved", _INTERLEAVED, ["float32", str(tmp_path_factory.mktemp("interleaved"))])])
+
+
+
 @pytest.mark.parametrize("dtype,tol", [("float64", 1e-11), ("float32", 2e-5)])
-def test_sitl_without_correction_equals_our_solver_coarse_substeps(dtype, tol):
-    out = _run(_SOLVER_ONLY, dtype)
+def test_sitl_without_correction_equals_our_solver_coarse_substeps(dtype, tol, request):
+    out = _result(request.getfixturevalue(f"{dtype}_runs"), "solver_only")
     assert out["n_params"] == 0          # the network is not even built
     assert out["finite"] and out["overflow"] == 0
     assert out["moved_vs_free_flight"] > 1e-5   # the SPH substeps do something
     assert out["max_diff"] < tol, out
 
 
-def test_gradient_through_sitl_matches_finite_differences():
-    out = _run(_GRADIENT, "float64")
+def test_gradient_through_sitl_matches_finite_differences(float64_runs):
+    out = _result(float64_runs, "gradient")
     assert out["grad_finite"]
     assert abs(out["ad"]) > 0
     assert out["rel"] < 1e-6, out
@@ -285,13 +336,13 @@ _ENCODER_IN = {}
 
 
 @pytest.mark.parametrize("extras", ["", "solver_acc,substep"])
-def test_untrained_sitl_equals_solver_only_on_a_batch(extras):
+def test_untrained_sitl_equals_solver_only_on_a_batch(extras, float32_runs):
     """The corrector's last layer starts at zero (model.zero_last_layer), so the untrained SitL model
     is the solver alone, on every sample of a batch, to round-off; the corrector is live (a non-zero
     last layer changes the output) and only its last layer is zero. So also with the extra inputs
     (model.extra_inputs: the solver's acceleration, dim 2, and the substep one-hot, L = 3), which widen
     the node encoder's input by exactly 2 + 3."""
-    out = _run(_ZERO_INIT, "float32", extras)
+    out = _result(float32_runs, f"zero_init:{extras}" if extras else "zero_init")
     _ENCODER_IN[extras] = out["encoder_in"]
     if len(_ENCODER_IN) == 2:
         assert _ENCODER_IN["solver_acc,substep"] - _ENCODER_IN[""] == 2 + 3, _ENCODER_IN
@@ -301,27 +352,13 @@ def test_untrained_sitl_equals_solver_only_on_a_batch(extras):
     assert out["live_diff"] > 0.05, out                            # normalised units: the corrector acts
 
 
-def _smoke_dataset(tmp_path) -> Path:
-    """The smoke dataset in a private folder: the tests' shared smoke folder's copied when there is one (another test
-    file may be writing it: make checks the copy against its recorded digests and regenerates a
-    damaged one), else generated (make sitl-data PROFILE=smoke, ~30 s)."""
-    results = tmp_path / "smoke"
-    seed_sitl_dataset(results)
-    env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1")
-    env.pop("VIRTUAL_ENV", None)
-    proc = subprocess.run(["make", "sitl-data", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    return results / "sitl" / "data" / "2D_RPF"
-
-
-def test_corrector_edges_are_lagrangebench_graph(tmp_path):
+def test_corrector_edges_are_lagrangebench_graph(float32_runs):
     """The corrector's edges at its input frame are exactly LagrangeBench's graph there (its own
     neighbour search, case.allocate, on the same positions): pairs closer than the connectivity
     radius, self edges included, no skin edges although the Verlet list behind them holds more
-    pairs. Two training frames of the smoke data and a jittered lattice with many pairs near the
-    radius."""
-    out = _run(_EDGES, "float32", _smoke_dataset(tmp_path))
+    pairs. Two training frames of the smoke data (the tests' shared smoke dataset, read only) and a
+    jittered lattice with many pairs near the radius."""
+    out = _result(float32_runs, "edges")
     for name, o in out.items():
         assert not o["overflow"], (name, o)
         assert o["equal"] and o["only_lb"] == o["only_ours"] == 0, (name, o)
@@ -330,22 +367,22 @@ def test_corrector_edges_are_lagrangebench_graph(tmp_path):
     assert out["jittered"]["near_radius"] > 50, out                # the mask's boundary is exercised
 
 
-def test_evaluation_windows_come_round_robin_from_every_seed(tmp_path):
+def test_evaluation_windows_come_round_robin_from_every_seed(float32_runs):
     """sitl.common.Interleaved: test (and validation) window i is window i // S of seed i % S, so the
     first n windows (LagrangeBench's n_trajs) cover every seed; every window is found in the data."""
-    out = _run(_INTERLEAVED, "float32", tmp_path)
+    out = _result(float32_runs, "interleaved")
     assert out["n"] == 6 and out["seeds"] == [0, 1, 2, 0, 1, 2]
     # windows of 7 frames cut from the 15 test frames (frames 16..30 of each seed): starts 16 and 23
     assert out["found"] == [[[0, 16]], [[1, 16]], [[2, 16]], [[0, 23]], [[1, 23]], [[2, 23]]], out["found"]
 
 
-def test_noise_response_is_the_linear_reaction_of_the_sph_substep(tmp_path):
+def test_noise_response_is_the_linear_reaction_of_the_sph_substep(float64_runs):
     """sitl/noise_response.py on a smoke training frame, float64: no noise changes nothing; twice the
     noise (the same draw, scaled) changes the acceleration twice as much, to 0.1 % (the SPH acceleration
     is smooth in the positions, so a tiny perturbation acts linearly); and the change has the
     magnitude a weakly compressible solver's scaling predicts (c^2 s / dx^2, within a factor 10 either
     way), in LagrangeBench's normalised units, so the script's unit conversion is the right one."""
-    out = _run(_NOISE, "float64", _smoke_dataset(tmp_path))
+    out = _result(float64_runs, "noise")
     rows = out["rows"]
     assert rows["zero"]["rms_change"] == 0.0, rows
     assert rows["small"]["rms_change"] > 0 and rows["small"]["rms_clean"] > 0, rows

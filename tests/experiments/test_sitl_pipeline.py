@@ -2,12 +2,12 @@
 GNS and SitL training with LagrangeBench's Trainer, test-set inference with its metrics, Table 1
 and Fig. 3), checked beyond finiteness (solver only against a bound from the data alone, the
 spread of every number, the paper's training settings), then an interrupted training continuing
-from its checkpoint. Runs .venv-lb through
-make; FAILS, not skips, when .venv-lb is missing."""
+from its checkpoint, and damaged files repaired by the next make. Into a results folder of this
+module's own (the dataset copied from the tests' shared smoke dataset). Runs .venv-lb through make;
+FAILS, not skips, when .venv-lb is missing."""
 import csv
 import json
 import math
-import os
 import subprocess
 from pathlib import Path
 
@@ -15,18 +15,11 @@ import h5py
 import numpy as np
 import pytest
 
-from sph_test_helpers import SHARED_SMOKE
+from sph_test_helpers import require_lb_env, seed_sitl_dataset, sitl_env as _env
 
 from sitl import settings as S
 
 ROOT = Path(__file__).resolve().parents[2]
-RESULTS = SHARED_SMOKE
-
-
-def _env():
-    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
-    env.pop("VIRTUAL_ENV", None)
-    return env
 
 
 def _frozen_mse5(path: Path, n_windows: int) -> float:
@@ -47,18 +40,21 @@ def _frozen_mse5(path: Path, n_windows: int) -> float:
 
 
 @pytest.fixture(scope="module")
-def smoke_made():
-    """`make table1 fig3 PROFILE=smoke` into the tests' shared folder, once per module (the models are
-    trained once; the other SitL test files copy the dataset from there)."""
-    if not (ROOT / ".venv-lb" / ".stamp").exists():
-        pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
-    proc = subprocess.run(["make", "table1", "fig3", "PROFILE=smoke", f"RESULTS={RESULTS}"], cwd=ROOT, env=_env(),
+def smoke_made(tmp_path_factory):
+    """`make table1 fig3 PROFILE=smoke` into a results folder of this module, once (the models are
+    trained once; the later tests damage its files and make again). The dataset is the tests' shared
+    one, copied: make checks the copy against its recorded digests."""
+    require_lb_env()
+    results = tmp_path_factory.mktemp("smoke")
+    seed_sitl_dataset(results)
+    proc = subprocess.run(["make", "table1", "fig3", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=_env(),
                           capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return proc
+    return results
 
 
 def test_table1_and_fig3_smoke(smoke_made):
+    RESULTS = smoke_made
     with (RESULTS / "table1" / "table1.csv").open() as f:
         rows = {r["metric"]: r for r in csv.DictReader(f)}
     for metric in ("MSE_5", "MSE_20", "MSE_Ekin", "Sinkhorn"):
@@ -110,10 +106,9 @@ def test_table1_and_fig3_smoke(smoke_made):
         assert json.loads((RESULTS / "sitl" / "ckp" / m / "train.json").read_text())["complete"]
 
 
-def test_interrupted_training_resumes_from_its_checkpoint():
+def test_interrupted_training_resumes_from_its_checkpoint(smoke_made):
+    RESULTS = smoke_made
     side = RESULTS / "sitl" / "ckp" / "gns" / "train.json"
-    if not side.exists():
-        pytest.fail("run test_table1_and_fig3_smoke first (it trains the smoke GNS)", pytrace=False)
     record = json.loads(side.read_text())
     record["complete"] = False            # as if the run had been killed after its last checkpoint
     side.write_text(json.dumps(record))
@@ -129,19 +124,16 @@ def test_interrupted_training_resumes_from_its_checkpoint():
 
 
 # -- issue 23, class 3: damaged SitL files are named, set aside and made again by the next make -----
-# On the smoke results made above. Other test files only copy the dataset from there into their own
-# results folders, and their make checks the copy against the digests generate.json recorded, so a
-# copy taken while a file here is damaged is regenerated there, never trusted.
+# On the smoke results made above (this module's own folder).
 @pytest.fixture(scope="module")
 def made(smoke_made):
-    return RESULTS
+    return smoke_made
 
 
 def _make_table1(results):
     """`make table1 PROFILE=smoke` as the fixture ran it (the same results folder: the same
     commands, so the deliverables' records match and only what is damaged is made again)."""
-    assert results == RESULTS
-    proc = subprocess.run(["make", "table1", "PROFILE=smoke", f"RESULTS={RESULTS}"], cwd=ROOT, env=_env(),
+    proc = subprocess.run(["make", "table1", "PROFILE=smoke", f"RESULTS={results}"], cwd=ROOT, env=_env(),
                           capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc.stdout
@@ -153,12 +145,26 @@ def _truncate(p: Path) -> bytes:
     return data
 
 
-def test_truncated_checkpoint_is_set_aside_and_trained_again(made):
+@pytest.fixture(scope="module")
+def checkpoint_truncated_and_split_deleted(made):
+    """One make repairs a truncated GNS checkpoint and a validation split deleted by hand (each would
+    cost a make of its own: the dataset's regeneration re-checks every model); the two tests below
+    check what it did to each. The split is regenerated without a traceback, and the damaged
+    checkpoint is trained again from scratch on the regenerated (identical) data."""
     ckp = made / "sitl" / "ckp" / "gns"
     damaged = ckp / "best" / "params_tree.pkl"
     cut = len(_truncate(damaged)) // 2
+    data = made / "sitl" / "data" / "2D_RPF"
+    original = (data / "valid.h5").read_bytes()
+    (data / "valid.h5").unlink()
     out = _make_table1(made)
-    assert f"{damaged.relative_to(ROOT)} is damaged" in out and "training gns again" in out, out[-3000:]
+    return {"out": out, "ckp": ckp, "damaged": damaged, "cut": cut, "data": data, "original": original}
+
+
+def test_truncated_checkpoint_is_set_aside_and_trained_again(made, checkpoint_truncated_and_split_deleted):
+    d = checkpoint_truncated_and_split_deleted
+    ckp, damaged, cut, out = d["ckp"], d["damaged"], d["cut"], d["out"]
+    assert f"{damaged} is damaged" in out and "training gns again" in out, out[-3000:]
     assert "train gns: from scratch" in out
     aside = max(ckp.parent.glob("gns.stale-*"), key=lambda p: p.stat().st_mtime)
     assert (aside / "best" / "params_tree.pkl").stat().st_size == cut  # kept as it was
@@ -169,14 +175,12 @@ def test_truncated_checkpoint_is_set_aside_and_trained_again(made):
     assert "is damaged" not in _make_table1(made)            # repaired: the next make trusts it
 
 
-def test_a_deleted_split_is_regenerated_in_one_line(made):
+def test_a_deleted_split_is_regenerated_in_one_line(made, checkpoint_truncated_and_split_deleted):
     """A split deleted by hand used to make the next make try to set the missing file aside and crash
     with a FileNotFoundError traceback, on every later make too."""
-    data = made / "sitl" / "data" / "2D_RPF"
-    original = (data / "valid.h5").read_bytes()
-    (data / "valid.h5").unlink()
-    out = _make_table1(made)
-    assert f"{(data / 'valid.h5').relative_to(ROOT)}: missing" in out and "generating the dataset again" in out, out[-3000:]
+    d = checkpoint_truncated_and_split_deleted
+    data, original, out = d["data"], d["original"], d["out"]
+    assert f"{data / 'valid.h5'}: missing" in out and "generating the dataset again" in out, out[-3000:]
     assert "Traceback" not in out
     assert (data / "valid.h5").read_bytes() == original        # regenerated: the same data (deterministic)
 
@@ -191,14 +195,14 @@ def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(
     table = made / "table1" / "table1.md"
     table.write_text(table.read_text()[:100])
     out = _make_table1(made)
-    assert f"{(data / 'test.h5').relative_to(ROOT)}: damaged" in out and "generating the dataset again" in out, out[-3000:]
+    assert f"{data / 'test.h5'}: damaged" in out and "generating the dataset again" in out, out[-3000:]
     aside = max(data.glob("test.h5.stale-*"), key=lambda p: p.stat().st_mtime)
     assert len(aside.read_bytes()) == len(original) // 2      # the damaged file is kept as it was
     assert (data / "test.h5").read_bytes() == original        # regenerated: the same data (deterministic)
     with h5py.File(data / "test.h5", "r") as f:
         assert f["00000/position"].shape[0] == S.load("smoke").data.frames[2]   # the whole test split
     assert "train gns: up to date" in out and "evaluate gns: up to date" in out  # same data: kept
-    assert f"{metrics.relative_to(ROOT)}: damaged (not readable as JSON" in out and "evaluating solver again" in out
+    assert f"{metrics}: damaged (not readable as JSON" in out and "evaluating solver again" in out
     assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
     assert "Solver only (paper)" in table.read_text()
 

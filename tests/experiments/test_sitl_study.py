@@ -1,7 +1,7 @@
 """`make sitl-study PROFILE=smoke` (sitl/study.py, in .venv-lb through make) into a private results
 folder: every kind of run of the study once, tiny (study.overrides of the smoke profile: 2 training
 steps, a 4-wide network, one test window), its table and figure, and a second call that repeats
-nothing. Shares the smoke dataset of the tests' shared folder (SHARED_SMOKE) when there is one (copied, as test_sitl_cost).
+nothing. Copies the tests' shared smoke dataset (made once per session, as for test_sitl_cost).
 
 Checked beyond "it ran": the equal-cost GNS's step budget recomputed from both models' timed
 seconds per step and per validation window; each run trained with its own settings (noise, substeps); SitL compared with the

@@ -82,3 +82,19 @@ def test_a_fixed_length_tuple_key_is_parsed_entry_by_entry():
         configtools.from_mapping(Box, {"size": [2.0, "x"]})
     with pytest.raises(sph.ConfigError, match=r"size: expected 2 entries, got 3"):
         configtools.from_mapping(Box, {"size": [1.0, 2.0, 3.0]})
+
+
+def test_devices_is_a_harness_key_of_every_profile(tmp_path):
+    """`devices:` (issue 40) is read by the harness, never by a study's Settings: a profile may set it
+    (default 1), the command line's --devices overrides it, and a bad value is refused naming the key."""
+    from lab.experiment import Experiment
+
+    folder = copied_experiment("tgv2d", tmp_path / "study", devices=2)
+    assert Experiment(folder, "smoke", tmp_path / "r").devices == 2
+    assert Experiment(folder, "smoke", tmp_path / "r", devices=3).devices == 3
+    assert Experiment(ROOT / "experiments" / "tgv2d", "smoke", tmp_path / "r").devices == 1
+    spec = Experiment(folder, "smoke", tmp_path / "r").spec(Experiment(folder, "smoke", tmp_path / "r").runs[0])
+    assert spec.devices == 2
+    bad = copied_experiment("tgv2d", tmp_path / "bad", devices=0)
+    with pytest.raises(sph.ConfigError, match=r"profiles\.smoke\.devices: must be a whole number >= 1, got 0"):
+        Experiment(bad, "smoke", tmp_path / "r")

@@ -18,7 +18,7 @@ import yaml
 from sph.errors import ConfigError
 from lab import cli, io, runs
 from lab.cli import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OUTPUT, main_guard
-from lab.configtools import load_profile, load_yaml
+from lab.configtools import load_yaml
 from lab.experiment import Experiment, load_settings
 from lab.layout import Study
 
@@ -71,7 +71,9 @@ def test_ctrl_c_is_one_line_and_exit_130(capsys):
 
 
 def test_ctrl_c_outside_main_guard_is_one_line(capsys):
-    cli._excepthook(KeyboardInterrupt, KeyboardInterrupt(), None)
+    from lab import interrupt
+
+    interrupt._excepthook(KeyboardInterrupt, KeyboardInterrupt(), None)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("interrupted: ")
 
@@ -119,9 +121,16 @@ def test_select_refuses_an_empty_subset():
 
 # -- class 5: the keys that disagree, the changed one first --------------------------------------------
 def _load(folder):
-    """settings.load of an experiment folder (a fresh module each time)."""
+    """settings.load of an experiment folder (a fresh module each time); of a folder of the protocol
+    (a study.py), lab.experiment.load_settings of it as `.load`."""
+    import functools
     import importlib.util
+    import types
 
+    if (folder / "study.py").exists():
+        from lab.experiment import load_settings
+
+        return types.SimpleNamespace(load=functools.partial(load_settings, folder))
     spec = importlib.util.spec_from_file_location(f"settings_{folder.name}_{time.time_ns()}", folder / "settings.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -188,9 +197,8 @@ def test_method_names_are_identifiers(name):
 
 
 def test_stability_case_names_are_identifiers():
-    st = _load(ROOT / "experiments" / "stability")
     with pytest.raises(ConfigError, match=r"cases\.a/\.\./x: 'a/\.\./x' is not a name"):
-        st.load("smoke", overrides={"cases": {"a/../x": {}}})
+        load_settings(ROOT / "experiments" / "stability", "smoke", overrides={"cases": {"a/../x": {}}})
 
 
 def test_a_run_folder_never_leaves_its_study(tmp_path):
@@ -199,12 +207,12 @@ def test_a_run_folder_never_leaves_its_study(tmp_path):
 
 
 def test_memory_is_refused_in_seconds_before_anything_is_built(tmp_path, monkeypatch):
-    import sph.checks
+    import sph.memory
 
-    monkeypatch.setattr(sph.checks, "available_memory", lambda: (50 * 2**20, "available host memory"))
+    monkeypatch.setattr(sph.memory, "available_memory", lambda: (50 * 2**20, "available host memory"))
     exp = Experiment(ROOT / "experiments" / "tgv2d", "smoke", tmp_path, overrides={"dx": [0.1, 0.002]})
     t0 = time.perf_counter()
-    with pytest.raises(sph.checks.InsufficientMemory, match=r"tgv2d at dx = 0\.002: 250,000 particles .* use a larger dx"):
+    with pytest.raises(sph.memory.InsufficientMemory, match=r"tgv2d at dx = 0\.002: 250,000 particles .* use a larger dx"):
         exp.run_all(progress=False)
     assert time.perf_counter() - t0 < 5
     assert not any(tmp_path.rglob("*")), "nothing is relaxed, run or written before the refusal"

@@ -1,7 +1,7 @@
 """The accuracy-cost atlas: every run record of a results folder side by side.
 
-Reads (never re-runs) the run records (record.json, lab.runs) of the TGV sweep (run.py) and of the
-experiments in `gather` (cavity: Figs. 6-7, dam break: Fig. 8, heat-operator validation), plus the
+Reads (never re-runs) the run records (record.json, lab.record) of the TGV sweep (study.py: the
+runs of its `parts`) and of the experiments in `gather` (cavity: Figs. 6-7, dam break: Fig. 8, heat-operator validation), plus the
 gradient check's metrics (gradcheck/: AD vs FD error against AD time). Writes, into
 results/<profile>/accuracy/:
 
@@ -16,8 +16,8 @@ results/<profile>/accuracy/:
                     what gradient checkpointing costs (time and memory of the same gradient), read
                     from results/bench/grad_memory.csv when bench/bench_grad_memory.py has written it
 
-    python experiments/accuracy/atlas.py --profile smoke [--results results/smoke]
-    python experiments/accuracy/atlas.py --from-runs docs/results/paper/accuracy/runs.csv [--out DIR]
+    python experiments/accuracy/plot_accuracy.py --profile smoke [--results results/smoke] [--out DIR]
+    python experiments/accuracy/plot_accuracy.py --from-runs docs/results/paper/accuracy/runs.csv [--out DIR]
         (re-draws accuracy.png alone from a runs.csv already written: `replot`)
 """
 import json
@@ -34,12 +34,10 @@ import pandas as pd  # noqa: E402
 from lab import stamp  # noqa: E402
 from lab.deliver import note_input  # noqa: E402
 from lab import other_load  # noqa: E402
+from lab.experiment import load_settings, plot_main  # noqa: E402
 from lab.figures import save_figure  # noqa: E402
 
-try:  # noqa: E402
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path
-    import settings as S
+HERE = Path(__file__).resolve().parent
 
 PROBLEMS = {  # problem -> (experiment of its records, error column, what the error is)
     "Taylor-Green 2D": ("tgv2d", None, "time-averaged |u_max / exact - 1|"),
@@ -70,11 +68,11 @@ def current_records(root: Path) -> list:
     return found
 
 
-def gather(atlas: "S.Atlas", results) -> pd.DataFrame:
-    """The record.json of every current run below the sweep folder and the gathered experiments'
-    folders (`current_records`), + gradcheck."""
+def gather(atlas, results) -> pd.DataFrame:
+    """The record.json of every current run below the sweep folder (<results>/accuracy) and the
+    gathered experiments' folders (`current_records`), + gradcheck; `atlas`: the study's Settings."""
     results = Path(results)
-    roots = [S.out_dir(results)] + [results / g for g in atlas.gather if g != "gradcheck"]
+    roots = [results / HERE.name] + [results / g for g in atlas.gather if g != "gradcheck"]
     rows = []
     for root in roots:
         for p in current_records(root):
@@ -93,7 +91,7 @@ def gather(atlas: "S.Atlas", results) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def problem_table(runs: pd.DataFrame, atlas: "S.Atlas", name: str) -> pd.DataFrame:
+def problem_table(runs: pd.DataFrame, atlas, name: str) -> pd.DataFrame:
     """The runs of one problem with columns label, error, wall_s, dx, n_particles."""
     exp, col, _ = PROBLEMS[name]
     col = col or f"err_{atlas.tgv.error}"
@@ -297,7 +295,7 @@ def plot_convergence(tables: dict, out: Path) -> dict:
     return fits
 
 
-def write_md(atlas: "S.Atlas", tables: dict, fits: dict, out: Path):
+def write_md(atlas, tables: dict, fits: dict, out: Path):
     lines = ["# Accuracy-cost atlas", "",
              "Cheapest run (wall time of the solve, compilation excluded) that reaches each error level, "
              "per problem; `-` where no run of the atlas reaches it.", ""]
@@ -375,8 +373,9 @@ def checkpointing_lines(csv: Path) -> list:
     return lines + [""]
 
 
-def build(atlas: "S.Atlas", results) -> Path:
-    out = S.out_dir(results)
+def build(atlas, results, out=None) -> Path:
+    """Every output of the atlas into `out` (default <results>/accuracy) from the records below `results`."""
+    out = Path(out) if out is not None else Path(results) / HERE.name
     out.mkdir(parents=True, exist_ok=True)
     runs = gather(atlas, results)
     runs.to_csv(out / "runs.csv", index=False)
@@ -393,7 +392,7 @@ def replot(runs_csv, profile: str = "paper", out=None, formats=("png",)) -> Path
     docs/results/paper/accuracy/runs.csv), without the records or experiments behind it: the same
     tables (problem_table) and plot as `build`. Writes into `out` (default: beside runs.csv)."""
     runs_csv = Path(runs_csv)
-    atlas = S.load(profile)
+    atlas = load_settings(HERE, profile)
     runs = pd.read_csv(runs_csv)
     tables = {name: problem_table(runs, atlas, name) for name in PROBLEMS}
     out = Path(out) if out is not None else runs_csv.parent
@@ -401,6 +400,12 @@ def replot(runs_csv, profile: str = "paper", out=None, formats=("png",)) -> Path
     png = plot_accuracy(tables, out, formats=formats)
     print(f"accuracy: {len(runs)} rows of {runs_csv} -> {png}")
     return png
+
+
+def plot(exp, out) -> Path:
+    """The atlas of the experiment's profile (lab.experiment.plot_main): every output into `out`."""
+    build(exp.settings, exp.results, out)
+    return Path(out) / "accuracy.png"
 
 
 if __name__ == "__main__":
@@ -416,6 +421,4 @@ if __name__ == "__main__":
         a = ap.parse_args()
         replot(a.from_runs, a.profile, a.out)
     else:
-        from lab.cli import experiment_main
-
-        experiment_main(build, S.load, __doc__)
+        plot_main(plot, __file__, __doc__)

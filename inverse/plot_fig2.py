@@ -2,10 +2,12 @@
 path of `path_optimizer` (its initial-state iterates, coloured by iteration) from the displaced and
 from the random start, and the loss curves of every optimizer (log scale).
 
-Reads results/<profile>/inverse/{paths.npz, metrics.csv, summary.csv} (run.py); writes
-results/<profile>/fig2/fig2.{png,pdf} and copies of metrics.csv and summary.csv there.
+Reads the runs of study.py (<results>/inverse/<run>/{result.json, paths.npz}, summary.csv); writes
+<out>/fig2.{png,pdf}, metrics.csv (every run's iteration rows: case, start, optimizer, iteration, loss,
+rmse_final, rmse_initial, wall_s, ...) and summary.csv (a copy of the runs' table) (`make fig2`:
+<out> = <results>/fig2).
 
-    python inverse/plot.py --profile smoke [--results results/smoke]
+    python inverse/plot_fig2.py --profile smoke [--results results/smoke] [--out results/smoke/fig2]
 """
 import shutil
 from pathlib import Path
@@ -14,20 +16,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
+from lab.experiment import plot_main  # noqa: E402
 from lab.figures import save_figure  # noqa: E402
-
-try:  # noqa: E402
-    from . import scene as cube
-    from . import settings as S
-except ImportError:  # run as a script: its folder comes first on the import path (a copied folder works unchanged)
-    import scene as cube
-    import settings as S
 
 STYLES = ["-", "--", ":", "-."]
 
@@ -52,13 +47,26 @@ def _state_panel(ax, data, exp, case, start, off, norm):
     ax.tick_params(labelsize=8)
 
 
-def plot(exp: "S.Experiment", results) -> Path:
-    results = Path(results)
-    out = S.fig_dir(results)
-    out.mkdir(parents=True, exist_ok=True)
-    data = np.load(S.paths_path(results))
-    table = pd.read_csv(S.metrics_path(results))
-    off = cube.offset(exp.dx, exp.layers)
+def gather(experiment):
+    """(the arrays of every run under the keys of Fig. 2's panels, every run's iteration rows): refused
+    unless every run is current."""
+    study, data, rows = experiment.study, {}, []
+    experiment.table()  # every run current, its row in summary.csv
+    for run in experiment.runs:
+        traj = experiment.trajectory(run)
+        z = study.paths(traj["folder"])
+        key = f"{run.case.name}__{run.start.name}__{run.optimizer.name}"
+        data.update({"walls": z["walls"], f"target_initial__{run.case.name}": z["target_initial"],
+                     f"target_final__{run.case.name}": z["target_final"], f"path__{key}": z["path"],
+                     f"finals__{key}": z["finals"]})
+        rows.append(study.iteration_rows(traj))
+    return data, pd.concat(rows, ignore_index=True)
+
+
+def plot(experiment, out: Path) -> Path:
+    exp, study = experiment.settings, experiment.study
+    data, table = gather(experiment)
+    off = study.offset(exp.dx, exp.layers)
     norm = colors.Normalize(0, exp.iterations)
     n_cases, n_starts = len(exp.cases), len(exp.starts)
     # 9.6 in wide: at the README's ~800 px a 9-point label is ~10 px tall; every legend in one row
@@ -101,13 +109,11 @@ def plot(exp: "S.Experiment", results) -> Path:
     fig.suptitle(f"Inverse problem: recover the initial positions from the final ones "
                  f"(t = {exp.t_end:g}, {exp.n_fluid} particles)")
     save_figure(fig, out, "fig2")
-    shutil.copyfile(S.metrics_path(results), out / "metrics.csv")
-    shutil.copyfile(S.out_dir(results) / "summary.csv", out / "summary.csv")
+    table.to_csv(out / "metrics.csv", index=False)
+    shutil.copyfile(experiment.out_dir / "summary.csv", out / "summary.csv")
     print(f"fig2 -> {out / 'fig2.png'}, {out / 'metrics.csv'}")
     return out / "fig2.png"
 
 
 if __name__ == "__main__":
-    from lab.cli import experiment_main
-
-    experiment_main(plot, S.load, __doc__)
+    plot_main(plot, __file__, __doc__)
