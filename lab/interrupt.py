@@ -1,14 +1,13 @@
 """Ctrl-C that is never lost: installed when the harness is first imported (lab/__init__.py), before JAX.
 
-Python raises KeyboardInterrupt wherever the main thread happens to be; inside a garbage-collector
-callback (JAX registers `_xla_gc_callback`, which runs at every collection) Python prints "Exception
-ignored" and carries on (so too in a finalizer, `__del__`): an interrupt during imports or
-compilation could be dropped, and the run went on to the end. `_on_sigint` asks again 50 ms later when it lands in such a callback. It
-replaces only Python's default handler, in the main thread (not where Ctrl-C is ignored, as in a
-background job, or handled otherwise). An interrupt before a script's `lab.cli.main_guard` (while
-it imports) prints one line too (`_excepthook`); what the scripts do with it is `main_guard`'s.
+Python raises KeyboardInterrupt wherever the main thread happens to be. Inside a garbage-collector
+callback (JAX registers `_xla_gc_callback`, which runs at every collection), a weakref callback or a
+finalizer it cannot: it prints "Exception ignored" (through `sys.unraisablehook`) and carries on, so
+an interrupt during imports or compilation could be dropped and the run went on to the end.
+`_unraisable` asks for such an interrupt again 50 ms later, where it can be raised. An interrupt
+before a script's `lab.cli.main_guard` (while it imports) prints one line (`_excepthook`); what the
+scripts do with it is `main_guard`'s.
 """
-import gc
 import os
 import signal
 import sys
@@ -32,27 +31,18 @@ def _excepthook(kind, value, tb, _default=sys.excepthook):
     _default(kind, value, tb)
 
 
-def _ignored_here(frame) -> bool:
-    """Whether an exception raised at `frame` would be ignored: it runs inside a garbage-collector
-    callback or a finalizer (`__del__`)."""
-    codes = {getattr(cb, "__code__", None) for cb in gc.callbacks}
-    while frame is not None:
-        if frame.f_code in codes or frame.f_code.co_name == "__del__":
-            return True
-        frame = frame.f_back
-    return False
-
-
-def _on_sigint(signum, frame):
-    if _ignored_here(frame):
+def _unraisable(info, _default=sys.unraisablehook):
+    """`sys.unraisablehook`: a KeyboardInterrupt that Python could not raise (it came inside a
+    garbage-collector callback, a weakref callback or a finalizer, and was printed as "Exception
+    ignored") is asked for again 50 ms later, where it can be raised; everything else as Python
+    reports it."""
+    if isinstance(info.exc_value, KeyboardInterrupt):
         threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
         return
-    raise KeyboardInterrupt
+    _default(info)
 
 
 def install() -> None:
-    """The one-line excepthook, and the SIGINT handler where Python's default is in place."""
+    """The one-line excepthook and the hook that re-asks a swallowed Ctrl-C."""
     sys.excepthook = _excepthook
-    if threading.current_thread() is threading.main_thread() and \
-            signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, _on_sigint)
+    sys.unraisablehook = _unraisable
