@@ -26,7 +26,7 @@ PACKAGES = ("sph", "lab")
 NUMBER_NEUTRAL = frozenset({
     "lab", "lab.animate", "lab.atomic", "lab.cli", "lab.configtools", "lab.io",
     "lab.keys", "lab.layout", "lab.other_load", "lab.record", "lab.runs",
-    "lab.stamp", "lab.interrupt",
+    "lab.stamp", "lab.interrupt", "lab.typed", "lab.yamlfile", "lab.profiles",
     "lab.tables", "lab.xdmf", "sph.xla_cpu", "lab.deliver", "lab.figures", "lab.protocol"})
 """Modules that cannot change a run's numbers: file formats, bookkeeping, paths, the command line.
 Every other module of lab counts (the studies, which set up scenes and starts: lab.study);

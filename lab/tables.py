@@ -10,15 +10,25 @@ from .io import MissingOutput, OutputError
 from .stamp import note_current
 
 
-def write_table(path, rows: list, sort: Optional[list] = None, ascending=True):
+def write_table(path, rows: list, sort: Optional[list] = None, ascending=True, columns: Optional[list] = None):
     """Rewrite the csv table `path` from `rows` (atomically). Returns the DataFrame. With no rows
     (no run of the current config has finished) the table is removed: an old one would list runs
-    that are not the config's, and a csv without columns cannot be read back."""
+    that are not the config's, and a csv without columns cannot be read back.
+
+    `columns`: a fixed schema, exactly these columns in this order (a key a row lacks is an empty
+    cell, a key not listed is left out), each value written as it is (`str`, no dtype inference: an
+    integer column with an empty cell stays `3`, not `3.0`); then a table with no rows keeps its
+    header."""
     import pandas as pd
 
-    df = pd.DataFrame(rows)
     path = Path(path)
     note_current(path)  # the run step's stamp lists it (lab.stamp)
+    if columns is not None:
+        cell = lambda v: "" if v is None else str(v)  # noqa: E731 (as the csv module writes a value)
+        df = pd.DataFrame([[cell(r.get(k)) for k in columns] for r in rows], columns=list(columns), dtype=object)
+        write_text(path, df.to_csv(index=False))
+        return df
+    df = pd.DataFrame(rows)
     if df.empty:
         path.unlink(missing_ok=True)
         return df

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import SourceMissing, find_source, sci
+from .readme_cells import SourceMissing, find_source, sci
 
 CASES = {"tgv": "Taylor-Green vortex", "ldc": "lid-driven cavity (moving lid, no-slip walls)"}
 OPTIMIZERS = {"gd": "GD on the MSE", "adam": "Adam", "gd_rmse": "GD on the RMSE (the paper's)"}

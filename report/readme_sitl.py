@@ -7,7 +7,7 @@ sitl/table1.py: Table 1 with its intervals and paired comparisons) and `sitl_cos
 sitl/cost.py: the accuracy-cost plane). report/readme_tables.py registers them."""
 from pathlib import Path
 
-from .readme_tables import find_source
+from .readme_cells import find_source
 
 SOURCES = {"sitl_study": "sitl_study/study.md", "sitl_table1": "table1/table1.md", "sitl_cost": "sitl/cost.md"}
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from .fmt import truthy
-from .readme_tables import find_source, duration, sig
+from .readme_cells import find_source, duration, sig
 
 
 def stability(snapshot: Path) -> list:

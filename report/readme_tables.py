@@ -34,57 +34,14 @@ from sitl.fmt import ratio_digits
 from lab import other_load
 
 from . import atlas, paper
+from .readme_cells import METHODS, SourceMissing, find_source, pct, sci, snapshot_csv
 
 MARKER = re.compile(r"(<!-- table:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)", re.S)
-METHODS = {"sph": "SPH", "tvf": "SPH + TVF", "riemann": "Riemann SPH"}
 NAMES = {"solver": "solver only", "gns": "GNS", "sitl": "SitL"}
 
 
-class SourceMissing(FileNotFoundError):
-    pass
-
-
-FALLBACK = "cpu"
-"""The profile a target is shown from where the paper profile needs a GPU (Table 1, report.paper)."""
-
-
-def find_source(snapshot: Path, rel: str, fallback: bool = False) -> Path:
-    """snapshot/rel, or (fallback) the same file in the sibling snapshot of the `cpu` profile."""
-    for base in (snapshot, snapshot.parent / FALLBACK) if fallback else (snapshot,):
-        if (base / rel).exists():
-            return base / rel
-    raise SourceMissing(f"{rel} is not in the {snapshot.name} snapshot")
-
-
-def _csv(snapshot: Path, rel: str) -> pd.DataFrame:
-    return pd.read_csv(find_source(snapshot, rel))
-
-
-def pct(v, digits: int = 3) -> str:
-    return "-" if pd.isna(v) else f"{100 * float(v):.{digits}g} %"
-
-
-def duration(s) -> str:
-    """A wall time in seconds: '45 s', '12 min', '1.9 h'."""
-    s = float(s)
-    return f"{s:.0f} s" if s < 120 else f"{s / 60:.0f} min" if s < 7200 else f"{s / 3600:.2g} h"
-
-
-def sig(v, digits: int = 3) -> str:
-    """`digits` significant digits; '-' for a missing cell (None, NaN or empty)."""
-    return "-" if v is None or str(v) == "" or pd.isna(v) else f"{float(v):.{digits}g}"
-
-
-def sci(v) -> str:
-    """7.1e-09 -> 7.1e-9."""
-    if v is None or pd.isna(v):
-        return "-"
-    m, e = f"{float(v):.1e}".split("e")
-    return f"{m}e{int(e)}"
-
-
 def tgv2d(snapshot: Path) -> list:
-    t = _csv(snapshot, "fig5/metrics.csv")
+    t = snapshot_csv(snapshot, "fig5/metrics.csv")
     order = {m: i for i, m in enumerate(METHODS)}
     t = t.assign(_m=t["method"].map(order).fillna(99)).sort_values(["_m", "dx"], ascending=[True, False])
     lines = ["| method | dx | u_max error t = 1 | t = 2 | time-averaged u_max / E_kin error | ms per step |",
@@ -196,7 +153,6 @@ def figures(snapshot: Path, readme: Path) -> list:
 
 
 def tables(snapshot: Path, readme: Path, profile: str) -> dict:
-    # imported here: these modules build on this one's helpers
     from . import readme_gradients as G, readme_sitl as Si, readme_stability as St, readme_tgv3d as T3
     from . import readme_verdicts as V, readme_walls as W
 

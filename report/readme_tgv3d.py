@@ -9,7 +9,7 @@ import pandas as pd
 
 from lab.other_load import cell
 
-from .readme_tables import METHODS, find_source, duration
+from .readme_cells import METHODS, find_source, duration
 
 
 def _pct(v) -> str:

@@ -13,7 +13,7 @@ import json
 import os
 from pathlib import Path
 
-from .readme_tables import SourceMissing
+from .readme_cells import SourceMissing
 
 DIRTY_MARK = "(with uncommitted changes)"
 

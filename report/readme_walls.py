@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .readme_tables import METHODS, SourceMissing, find_source, duration, pct, sig
+from .readme_cells import METHODS, SourceMissing, find_source, duration, pct, sig
 
 
 def cavity(snapshot: Path) -> list:

@@ -30,6 +30,7 @@ from sitl import generate
 from sitl import settings as S
 from sitl.evaluate import KEYS, per_window, summary
 from lab.cli import profile_main
+from lab.atomic import write_text
 
 
 def uniform_force_model(exp: S.Experiment, data_train, case_fns):
@@ -70,8 +71,7 @@ def main(args):
     exp, results = S.load(args.profile), args.results
     out = {"per_particle": evaluate(exp, results, "per_particle"), "uniform": evaluate(exp, results, "uniform")}
     dest = S.metrics_path(results, "solver").with_name("solver_authors_force.json")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(json.dumps(out, indent=2) + "\n")
+    write_text(dest, json.dumps(out, indent=2) + "\n")
     for k, v in out.items():
         print(f"solver only, {k} force: MSE_5 {v['mse5']:.3g}, MSE_20 {v['mse20']:.3g}, MSE_Ekin {v['e_kin']:.3g} "
               f"over {v['n_rollouts']} rollouts", flush=True)

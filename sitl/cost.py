@@ -54,7 +54,6 @@ the same inputs (data, config, code, trained models' metrics) does nothing.
 
     .venv-lb/bin/python sitl/cost.py --profile smoke [--results results/smoke] [--force]
 """
-import csv
 import dataclasses
 import json
 import math
@@ -76,6 +75,8 @@ from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
 from lab import keys, runs, stamp
+from lab.atomic import write_text
+from lab.tables import write_table
 from lab.cli import profile_main
 from lab.configtools import to_mapping
 from lab.deliver import note_input
@@ -393,16 +394,6 @@ def markdown(rows: list, exp: S.Experiment, profile: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_csv(rows: list, path: Path):
-    tmp = path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: r.get(k) for k in COLUMNS})
-    tmp.replace(path)
-
-
 def outputs(results) -> list:
     out = S.out_dir(results)
     return [out / "cost.csv", out / "cost.png", out / "cost.json", out / "cost.md"]
@@ -509,12 +500,12 @@ def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str
     two, checked on the next run) and the stamp `cost.done` listing the current points' record
     folders (the atlas reads exactly those: `lab.stamp.current_folders`)."""
     out = S.out_dir(results)
-    write_csv(rows, out / "cost.csv")
-    (out / "cost.md").write_text(markdown(rows, exp, profile or Path(results).name))
+    write_table(out / "cost.csv", rows, columns=COLUMNS)
+    write_text(out / "cost.md", markdown(rows, exp, profile or Path(results).name))
     plot(rows, out / "cost.png", f"RPF 2D, {exp.data.n_particles} particles ({profile or Path(results).name}): "
                                   f"coarse step = {exp.data.write_every} dt")
     made = integrity.digests(out, ["cost.csv", "cost.md", "cost.png"])
-    (out / "cost.json").write_text(json.dumps({"key": key, "rows": rows, "outputs": made}, indent=2) + "\n")
+    write_text(out / "cost.json", json.dumps({"key": key, "rows": rows, "outputs": made}, indent=2) + "\n")
     stamp_points(results, rows)
 
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lab.atomic import write_text
+
 
 class _Run:
     def __init__(self, path: Path):
@@ -57,12 +59,23 @@ def with_mse5(averaged):
     return fn
 
 
+def _rows(path: Path):
+    """The file's rows, each with its line; a line a killed process left half-written is skipped."""
+    for line in Path(path).read_text().splitlines():
+        try:
+            row = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(row, dict) and "step" in row:
+            yield line, row
+
+
 def truncate(path: Path, step: int):
-    """Drop the lines past `step` (a resumed run continues from its checkpoint at `step`)."""
+    """Drop the lines past `step` (a resumed run continues from its checkpoint at `step`), and any
+    half-written line; the file is replaced atomically, so a kill here loses nothing."""
     if not path.exists():
         return
-    keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["step"] <= step]
-    path.write_text("".join(line + "\n" for line in keep))
+    write_text(path, "".join(line + "\n" for line, row in _rows(path) if row["step"] <= step))
 
 
 def read(path: Path) -> dict:
@@ -70,10 +83,7 @@ def read(path: Path) -> dict:
     out = {"loss": [], "val": []}
     if not Path(path).exists():
         return out
-    for line in Path(path).read_text().splitlines():
-        if not line.strip():
-            continue
-        row = json.loads(line)
+    for _, row in _rows(path):
         if "loss" in row:
             out["loss"].append((row["step"], row["loss"]))
         if "val_mse20" in row:

@@ -41,6 +41,8 @@ from sitl import model as M
 from sitl import settings as S
 from sitl import study
 from lab.cli import profile_main
+from lab.atomic import write_text
+from lab.tables import write_table
 from lab.configtools import to_mapping
 from lab.keys import digest, files_digest
 
@@ -223,7 +225,7 @@ def write(rows: list, summ: list, frozen: np.ndarray, substeps: int, out: Path, 
     long = [{"model": r["model"], "checkpoint_step": r["checkpoint_step"], "window": r["window"], "seed": r["seed"],
              "step": k + 1, "mse": m, "first_bad_step": None if r["first_bad"] is None else r["first_bad"] + 1,
              "cause": r["cause"], "min_pair_dx": r["min_pair_dx"]} for r in rows for k, m in enumerate(r["mse"])]
-    pd.DataFrame(long).to_csv(stem.with_suffix(".csv"), index=False)
+    write_table(stem.with_suffix(".csv"), long)
     t = pd.DataFrame(summ)
     m = exp.data.write_every / substeps
     head = (f"# Where the coarse rollouts break: L = {substeps} (M = {m:.3g}), {len(rows) // len(summ)} "
@@ -231,8 +233,8 @@ def write(rows: list, summ: list, frozen: np.ndarray, substeps: int, out: Path, 
             "'above frozen': windows non-finite or with an MSE above particles frozen at the last input frame "
             "(sitl/baseline.py). A non-finite step is counted from 1.\n\n")
     steps = [int(c.rsplit(" ", 1)[-1]) for c in t.columns if c.startswith("mse step ")]
-    stem.with_suffix(".md").write_text(
-        head + t.to_markdown(index=False, floatfmt=".3g") + "\n\nFrozen particles, median MSE at steps "
+    write_text(
+        stem.with_suffix(".md"), head + t.to_markdown(index=False, floatfmt=".3g") + "\n\nFrozen particles, median MSE at steps "
         + ", ".join(map(str, steps)) + ": " + ", ".join(f"{np.median(frozen[:, s - 1]):.3g}" for s in steps) + "\n")
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     steps = np.arange(1, frozen.shape[1] + 1)
@@ -275,7 +277,7 @@ def diagnosis(profile: str, exp: S.Experiment, results, substeps: int, windows: 
     summ = summary(rows, frozen)
     write(rows, summ, frozen, substeps, side.parent, rexp)
     out = {"substeps": substeps, "windows": n_win, "summary": summ, "key": key}
-    side.write_text(json.dumps(out, indent=2) + "\n")  # last: a killed diagnosis is made again
+    write_text(side, json.dumps(out, indent=2) + "\n")  # last: a killed diagnosis is made again
     print(stem.with_suffix(".md").read_text(), flush=True)
     return out
 

@@ -34,6 +34,7 @@ from sitl import integrity
 from sitl import settings as S
 from sitl import stats
 from lab.cli import profile_main
+from lab.atomic import write_text
 from lab.io import OutputError
 from lab.deliver import note_input
 from lab.configtools import to_mapping
@@ -204,8 +205,7 @@ def evaluate(exp: S.Experiment, results, kind: str, rollouts: bool = True, force
         note_input(*(rdir / n for n in out["rollout_files"]))
     out["inputs"] = inputs_key(exp, results, kind)
     dest = S.metrics_path(results, kind)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(json.dumps(out, indent=2) + "\n")
+    write_text(dest, json.dumps(out, indent=2) + "\n")
     ci = out["ci_mse20"]
     print(f"evaluate {kind}: MSE_5 {out['mse5']:.3g}, MSE_20 {out['mse20']:.3g} [{ci[0]:.3g}, {ci[1]:.3g}], "
           f"MSE_Ekin {out['e_kin']:.3g}" + (f", Sinkhorn {out['sinkhorn']:.3g}" if sinkhorn else "") +

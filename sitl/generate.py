@@ -40,6 +40,7 @@ from sph.lattice import cartesian, jitter
 from sph.rollout import allocate_covering, make_chunk
 from sitl import integrity
 from sitl import settings as S
+from lab.atomic import write_text
 from lab.cli import profile_main
 from lab.io import OutputError
 from lab.deliver import note_input
@@ -242,8 +243,8 @@ def write(out: Path, exp: S.Experiment, pos: np.ndarray, times: np.ndarray, info
                 g.create_dataset("time", data=times[a:b])
         tmp.replace(out / f"{s}.h5")
     meta = metadata(exp, pos[:, cuts[0]:cuts[1]], info)
-    (out / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n")
-    (out / "force.py").write_text(FORCE_PY.format(g=float(exp.data.g), split=float(rpf.SPLIT)))
+    write_text(out / "metadata.json", json.dumps(meta, indent=2) + "\n")
+    write_text(out / "force.py", FORCE_PY.format(g=float(exp.data.g), split=float(rpf.SPLIT)))
     return meta
 
 
@@ -345,7 +346,7 @@ def dataset(exp: S.Experiment, results, progress: bool = True, devices=None) -> 
     pos, times, info = simulate_batch(exp.data, r0, devices, progress)
     write(path, exp, pos, times, info)
     checked = validate(path, exp)
-    side.write_text(json.dumps({"fingerprint": fp, "config": S.data_config_digest(exp), "relax_s": t_relax, **info,
+    write_text(side, json.dumps({"fingerprint": fp, "config": S.data_config_digest(exp), "relax_s": t_relax, **info,
                                 "validation": checked, "files": integrity.digests(path, FILES)},
                                indent=2, default=float) + "\n")
     note_input(*(path / f for f in FILES))

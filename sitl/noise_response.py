@@ -27,6 +27,7 @@ from sitl import generate
 from sitl import model as M
 from sitl import settings as S
 from lab.cli import profile_main
+from lab.atomic import write_text
 
 
 def response(path: Path, substeps: int, stds, frame: int = 100, seed: int = 0, dtype: str = "float32") -> list:
@@ -70,8 +71,7 @@ def main(args):
     frame, seed = 100, 0
     rows = response(path, exp.model.substeps, args.stds or [3e-4, 1e-4, 3e-5, exp.train.sitl_noise_std], frame, seed)
     dest = S.metrics_path(args.results, "solver").with_name("noise_response.json")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(json.dumps({"substeps": exp.model.substeps, "frame": frame, "seed": seed, "rows": rows},
+    write_text(dest, json.dumps({"substeps": exp.model.substeps, "frame": frame, "seed": seed, "rows": rows},
                                indent=2) + "\n")
     for r in rows:
         print(f"noise {r['noise_std']:.1e} ({r['noise_over_dx']:.1e} dx, {r['noise_over_sigma_a']:.2g} sigma_a): SPH "

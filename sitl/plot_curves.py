@@ -9,7 +9,6 @@ last validation MSE_20, the best, and the relative change over the last two vali
 
 Made by sitl/study.py (make sitl-study).
 """
-import csv
 from pathlib import Path
 
 import matplotlib
@@ -19,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from sitl import curve  # noqa: E402
 from sitl import settings as S  # noqa: E402
+from lab.tables import write_table  # noqa: E402
 
 MOVING = 0.05
 """A curve whose validation MSE_20 changed by more than this fraction between its last two
@@ -67,10 +67,7 @@ def plot(curves: dict, solver_lines: dict, dest: Path, title: str) -> list:
     fig.suptitle(title, fontsize=9)
     fig.savefig(dest, dpi=120)
     plt.close(fig)
-    with dest.with_suffix(".csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["run"])
-        w.writeheader()
-        w.writerows(rows)
+    write_table(dest.with_suffix(".csv"), rows, columns=list(rows[0]) if rows else ["run"])
     return rows
 
 

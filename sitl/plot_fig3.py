@@ -23,6 +23,9 @@ import numpy as np  # noqa: E402
 
 from sitl import settings as S  # noqa: E402
 from lab.cli import profile_main  # noqa: E402
+from lab import tables  # noqa: E402
+from lab.atomic import write_text  # noqa: E402
+from lab.figures import figure_dir, save_figure  # noqa: E402
 from lab.io import OutputError  # noqa: E402
 from lab.deliver import note_input  # noqa: E402
 
@@ -98,14 +101,11 @@ def plot_mse(records: dict, dest: Path, title: str):
 
 
 def write_table(rows: list, dest: Path):
-    import pandas as pd
-
-    df = pd.DataFrame(rows)
-    df.to_csv(dest.with_suffix(".csv"), index=False)
+    tables.write_table(dest.with_suffix(".csv"), rows)
     lines = ["| model | step | MSE (mean) | min | max | windows |", "|---|---|---|---|---|---|"]
     lines += [f"| {r['model']} | {r['step']} | {r['mean']:.3g} | {r['min']:.3g} | {r['max']:.3g} | {r['n_windows']} |"
               for r in rows]
-    dest.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    write_text(dest.with_suffix(".md"), "\n".join(lines) + "\n")
 
 
 def plot(results, exp: S.Experiment, profile: str) -> Path:
@@ -141,11 +141,8 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
     fig.colorbar(sc, ax=axes, shrink=0.6, label="|u|")
     fig.suptitle(f"RPF 2D, test rollout {exp.fig3.rollout} ({profile}, {meta['num_particles_max']} particles)",
                  fontsize=9)
-    dest = Path(results) / "fig3"
-    dest.mkdir(parents=True, exist_ok=True)
-    for ext in ("png", "pdf"):
-        fig.savefig(dest / f"fig3.{ext}", dpi=150)
-    plt.close(fig)
+    dest = figure_dir(results, "fig3")
+    save_figure(fig, dest, "fig3", dpi=150)
     plot_mse(records, dest / "fig3_mse.png", f"RPF 2D, {profile}: MSE against rollout step")
     write_table(mse_table(records), dest / "mse_steps.csv")
     print(f"fig3: {dest / 'fig3.png'}")

@@ -139,8 +139,8 @@ class Model:
         require(self.num_mlp_layers >= 1, "model.num_mlp_layers", "must be >= 1")
         require(self.num_mp_steps >= 1, "model.num_mp_steps", "must be >= 1")
         require(self.substeps >= 1, "model.substeps", f"must be >= 1, got {self.substeps}")
-        require(self.input_seq_length == 2, "model.input_seq_length",
-                "SitL starts from one velocity: only 2 is supported")
+        require(self.input_seq_length >= 2, "model.input_seq_length",
+                f"needs at least 2 positions (one velocity), got {self.input_seq_length}")
         require(self.capacity_multiplier >= 1, "model.capacity_multiplier", "must be >= 1")
         require(self.solver_force in SOLVER_FORCES, "model.solver_force",
                 f"{self.solver_force!r} is not one of {', '.join(SOLVER_FORCES)}")
@@ -326,6 +326,9 @@ class Study:
     consistent_start the solver alone started with the velocity at t0 (model.start "consistent"):
                      how much of its error is the start-up lag of the frame-averaged velocity
     gns_noise        GNS's training noise sweep besides train.noise_std (LagrangeBench's RPF: 3e-4)
+    gns_input_seq    GNS with these input lengths besides model.input_seq_length (LagrangeBench's
+                     default: 6 positions, 5 velocities); its test windows are longer, so it is
+                     compared with the solver alone unpaired
     """
 
     noise: tuple[float, ...] = (0.0, 1e-5, 3e-5, 3e-4)
@@ -339,12 +342,15 @@ class Study:
     extra_inputs: tuple[str, ...] = ("solver_acc", "substep")
     consistent_start: bool = True
     gns_noise: tuple[float, ...] = (3e-4, 1e-4)
+    gns_input_seq: tuple[int, ...] = (6,)
 
     def __post_init__(self):
         for i, n in enumerate(self.noise):
             require(n >= 0, f"study.noise[{i}]", f"must be >= 0, got {n}")
         for i, n in enumerate(self.gns_noise):
             require(n >= 0, f"study.gns_noise[{i}]", f"must be >= 0, got {n}")
+        for i, n in enumerate(self.gns_input_seq):
+            require(isinstance(n, int) and n >= 2, f"study.gns_input_seq[{i}]", f"must be an integer >= 2, got {n!r}")
         for i, name in enumerate(self.extra_inputs):
             require(name in EXTRA_INPUTS, f"study.extra_inputs[{i}]", f"{name!r} is not one of {', '.join(EXTRA_INPUTS)}")
         for i, n in enumerate(self.substeps):
@@ -376,6 +382,10 @@ class Experiment:
     def __post_init__(self):
         for i, m in enumerate(self.models):
             require(m in MODELS, f"models[{i}]", f"{m!r} is not one of {list(MODELS)}")
+        loop = [m for m in self.models if m != "gns"]
+        require(self.model.input_seq_length == 2 or not loop, "model.input_seq_length",
+                f"{self.model.input_seq_length} positions, but {' and '.join(loop)} start(s) from one velocity: only 2 "
+                "is supported there (a GNS with a longer history: models: [gns])")
         windows = self.data.frames[2] // (self.model.input_seq_length + self.eval.n_rollout_steps)
         require(windows >= 1, "data.frames[2]", f"the test split needs at least input_seq_length + "
                 f"eval.n_rollout_steps = {self.model.input_seq_length + self.eval.n_rollout_steps} frames")

@@ -58,6 +58,21 @@ def paired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) 
     return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
 
 
+def unpaired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) -> tuple:
+    """(mean(a) / mean(b), lo, hi) with the bootstrap interval of the ratio when a and b are the
+    per-window values of two models on different windows (each resampled on its own): wider than the
+    paired interval, which needs the same windows. NaN as `paired_ratio`."""
+    va, vb = _finite(a), _finite(b)
+    if not (np.all(np.isfinite(va)) and np.all(np.isfinite(vb))) or vb.mean() <= 0:
+        return (math.nan, math.nan, math.nan)
+    ratio = float(va.mean() / vb.mean())
+    if min(len(va), len(vb)) == 1:
+        return (ratio, math.nan, math.nan)
+    r = va[_resample(len(va), n_boot, seed)].mean(axis=1) / vb[_resample(len(vb), n_boot, seed + 1)].mean(axis=1)
+    lo, hi = (1.0 - level) / 2, 1.0 - (1.0 - level) / 2
+    return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
+
+
 MIN_WINDOWS = 10
 """Fewer windows than this never decide a comparison (a bootstrap over 2 windows is no interval)."""
 

@@ -34,7 +34,6 @@ repeated (sitl/train.py, sitl/evaluate.py), so `make sitl-study` can be killed a
 
     .venv-lb/bin/python sitl/study.py --profile smoke [--only sitl_L2 solver_L2]
 """
-import csv
 import dataclasses
 import json
 import math
@@ -47,6 +46,8 @@ from sitl import settings as S
 from sitl import stats
 from sitl.fmt import ratio_digits
 from lab.cli import profile_main, select
+from lab.atomic import write_text
+from lab.tables import write_table
 from lab.configtools import merge
 from lab.lock import folder_lock
 
@@ -118,6 +119,11 @@ def runs(exp: S.Experiment) -> list:
     for n in st.gns_noise:
         if n != t.noise_std:
             out.append(Run(f"gns_noise{_g(n)}", "gns", "fair_gns", f"GNS, noise {_g(n)}", {"train": {"noise_std": n}}))
+    for n in st.gns_input_seq:
+        if n != exp.model.input_seq_length:
+            out.append(Run(f"gns_seq{n}", "gns", "fair_gns", f"GNS, noise {_g(t.noise_std)}, {n} input positions "
+                                                             f"({n - 1} velocities; other test windows: unpaired)",
+                           {"model": {"input_seq_length": n}, "models": ["gns"]}))
     return out
 
 
@@ -184,8 +190,7 @@ def equal_cost_budget(profile: str, exp: S.Experiment, results) -> dict:
                                       # as many validations as SitL's (steps // eval_steps of them)
                                       "eval_steps": max(1, steps // max(1, n_evals)),
                                       "log_steps": max(1, int(round(t.log_steps * steps / t.step_max)))}}}
-    side.parent.mkdir(parents=True, exist_ok=True)
-    side.write_text(json.dumps(budget, indent=2) + "\n")
+    write_text(side, json.dumps(budget, indent=2) + "\n")
     return budget
 
 
@@ -215,7 +220,7 @@ def authors_force(profile: str, exp: S.Experiment, results, run: Run) -> dict:
     out = {"key": key, "dx": afexp.data.dx, "frame_dt": afexp.data.dt * afexp.data.write_every,
            "n_particles": afexp.data.n_particles,
            "per_particle": AF.evaluate(afexp, own, "per_particle"), "uniform": AF.evaluate(afexp, own, "uniform")}
-    side.write_text(json.dumps(out, indent=2) + "\n")
+    write_text(side, json.dumps(out, indent=2) + "\n")
     return out
 
 
@@ -328,11 +333,13 @@ def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
                "shared_with_table1": r["shared"], "folder": r["folder"]}
         ref = reference_of(run, exp, rows)
         if ref is not None:
-            ratio, lo, hi = stats.paired_ratio(m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"],
-                                               n_boot)
-            row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi,
-                       verdict=stats.verdict(lo, hi, m["n_rollouts"]))
-            if "mse1" in m["per_window"] and "mse1" in ref["metrics"]["per_window"]:  # one step, before compounding
+            # the same test windows: paired; a longer input history cuts the test data into other windows
+            paired = rexp.model.input_seq_length == ref["exp"].model.input_seq_length
+            a, b = m["per_window"]["mse20"], ref["metrics"]["per_window"]["mse20"]
+            ratio, lo, hi = stats.paired_ratio(a, b, n_boot) if paired else stats.unpaired_ratio(a, b, n_boot)
+            row.update(vs=ref["run"].name, ratio_mse20=ratio, ratio_lo=lo, ratio_hi=hi, paired=paired,
+                       verdict=stats.verdict(lo, hi, min(m["n_rollouts"], ref["metrics"]["n_rollouts"])))
+            if paired and "mse1" in m["per_window"] and "mse1" in ref["metrics"]["per_window"]:  # one step, before compounding
                 r1, lo1, hi1 = stats.paired_ratio(m["per_window"]["mse1"], ref["metrics"]["per_window"]["mse1"], n_boot)
                 row.update(ratio_mse1=r1, ratio_mse1_lo=lo1, ratio_mse1_hi=hi1)
             row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"], row["blew_up"],
@@ -420,7 +427,7 @@ def blew_up(e_kin, frozen_e_kin) -> bool:
 COLUMNS = ["name", "group", "kind", "label", "L", "M", "noise_std", "lr_start", "seed", "train_steps",
            "train_wall_s", "train_timed_from_step", "s_per_step", "best_step", "mse5", "mse20", "mse20_lo",
            "mse20_hi", "e_kin", "sinkhorn", "n_windows", "finite", "blew_up", "vs", "ratio_mse20", "ratio_lo",
-           "ratio_hi", "verdict", "ratio_mse1", "ratio_mse1_lo", "ratio_mse1_hi", "shared_with_table1", "folder"]
+           "ratio_hi", "paired", "verdict", "ratio_mse1", "ratio_mse1_lo", "ratio_mse1_hi", "shared_with_table1", "folder"]
 
 
 def timed_from_step(train: dict):
@@ -498,7 +505,8 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
         tr = _train_cell(r)
         d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
         vs = "" if r.get("vs") is None else \
-            f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]"
+            f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]" + \
+            ("" if r.get("paired", True) else " (unpaired)")
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} | "
@@ -606,16 +614,6 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
     plt.close(fig)
 
 
-def write_csv(flat: list, path: Path):
-    tmp = path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        for r in flat:
-            w.writerow({k: r.get(k) for k in COLUMNS})
-    tmp.replace(path)
-
-
 def run(profile: str, results, only=None) -> list:
     from sitl import generate
 
@@ -650,13 +648,13 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
     flat = table(exp, rows, frozen["e_kin"]) + [frozen, constant_velocity_row(profile, exp, results, plan)]
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
-    write_csv(flat, out / "study.csv")
+    write_table(out / "study.csv", flat, columns=COLUMNS)
     md = markdown(exp, flat, profile, budget, sigma_a(results))
-    (out / "study.md").write_text(md)
+    write_text(out / "study.md", md)
     d = exp.data
     plot(exp, flat, out / "study.png", f"SitL study, RPF 2D, {profile}: {d.n_particles} particles, "
                                        f"W = {d.write_every}; mean over test windows, 95 % bootstrap intervals")
-    (out / "study.json").write_text(json.dumps({"profile": profile, "runs": [r for r in flat],
+    write_text(out / "study.json", json.dumps({"profile": profile, "runs": [r for r in flat],
                                                 "budget": budget}, indent=2, default=str) + "\n")
     from sitl import plot_curves
 

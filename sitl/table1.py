@@ -6,7 +6,6 @@ results/<profile>/table1/table1.csv, comparisons.csv and table1.md.
 
     python sitl/table1.py --profile smoke
 """
-import csv
 import json
 from pathlib import Path
 
@@ -14,6 +13,8 @@ from sitl import settings as S
 from sitl import stats
 from sitl.fmt import ratio_digits
 from lab.cli import profile_main
+from lab.atomic import write_text
+from lab.tables import write_table
 from lab.io import OutputError
 
 PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
@@ -121,15 +122,8 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
     dest = Path(results) / "table1"
     dest.mkdir(parents=True, exist_ok=True)
     fields = ["metric"] + [f"{m}_{w}" for m in models for w in ("ours", "lo", "hi", "paper")]
-    with (dest / "table1.csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        for row in table:
-            w.writerow({k: row.get(k, "") for k in fields})
-    with (dest / "comparisons.csv").open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=["a", "b", "metric", "ratio", "lo", "hi", "verdict"])
-        w.writeheader()
-        w.writerows(comps)
+    write_table(dest / "table1.csv", table, columns=fields)
+    write_table(dest / "comparisons.csv", comps, columns=["a", "b", "metric", "ratio", "lo", "hi", "verdict"])
     head = "| metric | " + " | ".join(f"{COLUMNS[m]} (ours) | {COLUMNS[m]} (paper)" for m in models) + " |"
     n = measured[models[0]].get("n_rollouts")
     lines = [f"# Table 1, RPF 2D, profile {profile or Path(results).name}", "",
@@ -146,7 +140,7 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
             lines.append(f"| {COLUMNS[c['a']]} / {COLUMNS[c['b']]} | {c['metric']} | {fmt(c['ratio'], d)} "
                          f"[{fmt(c['lo'], d)}, {fmt(c['hi'], d)}] | {COLUMNS[c['a']]} {c['verdict']} |")
     lines += ["", f"Paper's ordering (SitL < GNS < solver only): {ordering(measured, comps)}.", ""]
-    (dest / "table1.md").write_text("\n".join(lines))
+    write_text(dest / "table1.md", "\n".join(lines))
     print("\n".join(lines))
     return dest
 

@@ -25,6 +25,7 @@ from sitl import integrity
 from sitl import model as M
 from sitl import settings as S
 from lab import runs
+from lab.atomic import write_text
 from lab.cli import profile_main
 from lab.deliver import note_input
 from lab.lock import folder_lock
@@ -90,7 +91,7 @@ def _train(exp: S.Experiment, results, kind: str) -> dict:
             print(f"train {kind}: up to date ({ckp})", flush=True)
             return record
     ckp.mkdir(parents=True, exist_ok=True)
-    side.write_text(json.dumps(record, indent=2) + "\n")
+    write_text(side, json.dumps(record, indent=2) + "\n")
 
     data_train, data_valid, _ = C.datasets(exp, path)
     case = C.case(exp, data_train, kind)
@@ -127,7 +128,7 @@ def _train(exp: S.Experiment, results, kind: str) -> dict:
                   s_per_step=wall / max(1, exp.train.step_max - step0),
                   curve=CURVE, files=integrity.digests(ckp, checkpoint_files()))
     note_input(*(ckp / n for n in record.get("files", {})))
-    side.write_text(json.dumps(record, indent=2) + "\n")
+    write_text(side, json.dumps(record, indent=2) + "\n")
     print(f"train {kind}: done in {wall:.0f} s ({record['s_per_step']:.3f} s/step); best val MSE_20 "
           f"{best['loss']:.3g} at step {best['step']}", flush=True)
     return record

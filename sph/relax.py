@@ -3,13 +3,18 @@
 A jittered lattice at rest is advanced with the transport-velocity formulation (Adami 2013) and an
 EoS background pressure p_bg_factor * p_ref until the particles spread evenly; optionally the velocity
 is zeroed every `quench_every` steps (a damped relaxation that settles instead of sloshing). Only
-the fluid moves; walls, if the scene has them, keep their places.
+the fluid moves; walls, if the scene has them, keep their places. The relaxation is geometric: the
+scene's gravity and body force are off (as in JAX-SPH's relaxation mode, which zeroes the external
+acceleration), so no flow is driven while the particles spread; its viscosity is the scene's unless
+`Relaxation.eta` says otherwise (a very viscous scene would otherwise relax under its viscous time
+step limit cfl h^2 rho_ref / eta, sph.timestep).
 
     r, info = relax(scene, numerics, Relaxation(steps=5000, quench_every=200))
 """
 import dataclasses
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import jax
 import jax.numpy as jnp
@@ -36,6 +41,9 @@ class Relaxation:
     quench_every  set the velocity to zero every this many steps (0 = never, JAX-SPH's choice); the
                   quench removes the kinetic energy the relaxation keeps sloshing around, so the
                   particles settle instead of still moving at u_max ~ 0.025 after 5000 steps
+    eta           dynamic viscosity during the relaxation; None = the scene's material.eta (JAX-SPH's
+                  choice). At nu = 100 and dx 0.02 the viscous limit makes dt ~ 1e-7: e.g. eta 0.01
+                  relaxes at the convective dt instead
     """
 
     steps: int = 5000
@@ -43,6 +51,7 @@ class Relaxation:
     noise_factor: float = 0.25
     seed: int = 123
     quench_every: int = 0
+    eta: Optional[float] = None
 
     def __post_init__(self):
         require(self.steps >= 0, "relaxation.steps", f"must be >= 0, got {self.steps}")
@@ -51,15 +60,20 @@ class Relaxation:
         require(bool(np.isfinite(self.noise_factor)) and self.noise_factor >= 0, "relaxation.noise_factor",
                 f"must be finite and >= 0, got {self.noise_factor}")
         require(self.quench_every >= 0, "relaxation.quench_every", f"must be >= 0, got {self.quench_every}")
+        require(self.eta is None or (bool(np.isfinite(self.eta)) and self.eta >= 0), "relaxation.eta",
+                f"must be finite and >= 0 (or null: the scene's), got {self.eta}")
         require(not self.quench_every or self.steps % self.quench_every == 0, "relaxation.quench_every",
                 f"must divide relaxation.steps ({self.steps}), got {self.quench_every}")
 
 
 def relax(scene: Scene, numerics: Numerics, rlx: Relaxation, progress: bool = True, desc: str = "relax"):
-    """Relax the fluid particles of `scene` (its velocities are ignored: it starts at rest, with TVF
-    and the relaxation's background pressure). Returns (positions (N, dim) float64, info dict)."""
-    scene = dataclasses.replace(scene, u=np.where(scene.fluid_mask[:, None], 0.0, scene.u),
-                                effects=dataclasses.replace(scene.effects, tvf=True, riemann=False,
+    """Relax the fluid particles of `scene` (its velocities are ignored: it starts at rest, with TVF,
+    the relaxation's background pressure, no gravity or body force, and `rlx.eta` if given). Returns
+    (positions (N, dim) float64, info dict)."""
+    material = scene.material if rlx.eta is None else dataclasses.replace(scene.material, eta=rlx.eta)
+    scene = dataclasses.replace(scene, u=np.where(scene.fluid_mask[:, None], 0.0, scene.u), material=material,
+                                body_force=None,
+                                effects=dataclasses.replace(scene.effects, tvf=True, riemann=False, gravity=None,
                                                             density_evolution=False, density_reinit_every=0))
     solver = build_solver(scene, dataclasses.replace(numerics, p_bg_factor=rlx.p_bg_factor))
     state, nbrs = solver.init_fn()

@@ -126,6 +126,10 @@ def test_settings_are_the_papers():
         S.load("cpu", overrides={"study": {"authors_force_data": {"dxx": 0.1}}})
     with pytest.raises(sph.ConfigError, match=r"train\.eval_n_trajs: 60 exceeds the 50 windows"):
         S.load("cpu", overrides={"train": {"eval_n_trajs": 60}})
+    # a GNS with LagrangeBench's 6 input positions, alone; SitL and the solver start from one velocity
+    assert S.load("cpu", overrides={"model": {"input_seq_length": 6}, "models": ["gns"]}).model.input_seq_length == 6
+    with pytest.raises(sph.ConfigError, match=r"model\.input_seq_length: 6 positions, but solver and sitl"):
+        S.load("cpu", overrides={"model": {"input_seq_length": 6}})
     af = S.authors_force_experiment(S.load("cpu")).data
     assert (af.dx, af.dt * af.write_every) == (0.025, pytest.approx(0.01))   # the paper's resolution and interval
 
