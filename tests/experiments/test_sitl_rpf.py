@@ -118,13 +118,16 @@ def test_settings_are_the_papers():
         assert t.noise("gns") == 1e-3 and t.noise("sitl") == t.noise("solver") == 1e-5
     for p in ("cpu", "paper"):
         exp = S.load(p)
-        assert exp.train.eval_n_trajs >= 25 and exp.eval.n_trajs == -1, p
+        # every seed tested alike: all windows, or as many of each (round-robin over the seeds)
+        ev, seeds = exp.eval.n_trajs, exp.data.seeds
+        assert exp.train.eval_n_trajs >= 25 and (ev == -1 or (ev >= seeds and ev % seeds == 0)), p
+    assert S.load("cpu").data.seeds >= 4   # test windows from at least 4 independent trajectories (issue 39)
     assert 1e-5 in S.load("cpu").study.noise and 3e-4 in S.load("cpu").study.noise
     with pytest.raises(sph.ConfigError, match=r"study\.substeps\[0\]: L = 3 does not divide data\.write_every = 20"):
         S.load("cpu", overrides={"study": {"substeps": [3]}})
     with pytest.raises(sph.ConfigError, match=r"study\.authors_force_data\.dxx"):
         S.load("cpu", overrides={"study": {"authors_force_data": {"dxx": 0.1}}})
-    with pytest.raises(sph.ConfigError, match=r"train\.eval_n_trajs: 60 exceeds the 50 windows"):
+    with pytest.raises(sph.ConfigError, match=r"train\.eval_n_trajs: 60 exceeds the 48 windows"):
         S.load("cpu", overrides={"train": {"eval_n_trajs": 60}})
     # a GNS with LagrangeBench's 6 input positions, alone; SitL and the solver start from one velocity
     assert S.load("cpu", overrides={"model": {"input_seq_length": 6}, "models": ["gns"]}).model.input_seq_length == 6
