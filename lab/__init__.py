@@ -1,6 +1,7 @@
 """The harness: what runs the physics core (`sph`) for an experiment, and never the other way round.
 
-  configtools.py   frozen config dataclasses from YAML profiles (`inherit`), errors naming the key
+  configtools.py   the config API in one import: typed.py (frozen config dataclasses from mappings),
+                   yamlfile.py (strict YAML), profiles.py (`inherit`, errors naming file, profile, key)
   keys.py          cache keys: config digests, code fingerprints without docstrings and comments
   runs.py          the cached run: skip a current run, resume a partial one, set aside a stale one
   record.py        the run record every experiment writes (what `make accuracy` gathers)

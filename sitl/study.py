@@ -390,7 +390,7 @@ def authors_table1(flat: list) -> list:
                  "before), and the positive control:", "",
              "| run | MSE_5 | MSE_20 | MSE_Ekin (not comparable across particle counts) |", "|---|---|---|---|"]
     for r in [by[n] for n in ("gns",) if n in by] + rows:
-        lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}] | "
+        lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | "
                      f"{_f(r.get('e_kin'))} |")
     if pc is not None and pc.get("ratio_mse20"):
         factor = 1.0 / pc["ratio_mse20"]
@@ -459,6 +459,14 @@ def _f(x, digits: int = 3) -> str:
     return f"{x:.{digits}g}"
 
 
+def _ci(value, lo, hi, digits: int = 3) -> str:
+    """" [lo, hi]" of the interval of a finite `value`; " (one window: no interval)" when the interval
+    is NaN (stats: no spread from one window); "" for a non-finite value (it reads "diverged" itself)."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value)):
+        return ""
+    nan = lo is None or hi is None or any(isinstance(x, float) and math.isnan(x) for x in (lo, hi))
+    return " (one window: no interval)" if nan else f" [{_f(lo, digits)}, {_f(hi, digits)}]"
+
 def _other_work(cores) -> str:
     """', beside x cores of other work' when the budget's timing measured it (lab.other_load)."""
     return "" if cores is None else f", beside {cores:.2g} cores of other work"
@@ -478,7 +486,7 @@ def _ratio_cell(r: dict, key: str) -> str:
         return ""
     lo, hi = r.get(f"{key}_lo"), r.get(f"{key}_hi")
     d = ratio_digits(r[key], lo, hi)
-    return f"{_f(r[key], d)} [{_f(lo, d)}, {_f(hi, d)}]"
+    return f"{_f(r[key], d)}{_ci(r[key], lo, hi, d)}"
 
 
 def _noise_cell(noise, sig) -> str:
@@ -505,9 +513,9 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
         tr = _train_cell(r)
         d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
         vs = "" if r.get("vs") is None else \
-            f"{_f(r['ratio_mse20'], d)} [{_f(r['ratio_lo'], d)}, {_f(r['ratio_hi'], d)}]" + \
+            f"{_f(r['ratio_mse20'], d)}{_ci(r['ratio_mse20'], r['ratio_lo'], r['ratio_hi'], d)}" + \
             ("" if r.get("paired", True) else " (unpaired)")
-        mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}]"
+        mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])}"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} | "
                      f"{_ratio_cell(r, 'ratio_mse1')} |")
@@ -525,7 +533,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",
                   "| force | MSE_5 | MSE_20 | MSE_Ekin |", "|---|---|---|---|"]
-        lines += [f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])} [{_f(r['mse20_lo'])}, {_f(r['mse20_hi'])}] | "
+        lines += [f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | "
                   f"{_f(r['e_kin'])} |" for r in af]
         lines.append("| paper's solver only (Table 1) | " + " | ".join(_f(PAPER_SOLVER[k]) for k in
                                                                       ("mse5", "mse20", "e_kin")) + " |")
