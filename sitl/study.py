@@ -392,6 +392,9 @@ def authors_table1(flat: list) -> list:
     for r in [by[n] for n in ("gns",) if n in by] + rows:
         lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | "
                      f"{_f(r.get('e_kin'))} |")
+    order = [pc, by.get("gns"), next((r for r in rows if r["kind"] == "solver"), None)]
+    if all(r is not None for r in order):
+        lines += ["", f"The paper's ordering (SitL < GNS < solver only) on MSE_20 here: {paper_ordering(*order)}."]
     if pc is not None and pc.get("ratio_mse20"):
         factor = 1.0 / pc["ratio_mse20"]
         ok = factor >= POSITIVE_CONTROL_FACTOR and pc["finite"]
@@ -399,6 +402,27 @@ def authors_table1(flat: list) -> list:
                       f"(paired interval of the ratio [{_f(pc['ratio_lo'])}, {_f(pc['ratio_hi'])}]): "
                       f"{'passes' if ok else 'FAILS'} (needs >= {POSITIVE_CONTROL_FACTOR:g}x)."]
     return lines
+
+
+def paper_ordering(sitl: dict, gns: dict, solver: dict) -> str:
+    """Whether MSE_20 orders SitL < GNS < solver only (rows of study.csv): "holds" when the three
+    95 % intervals are disjoint in that order, "holds by the means only (intervals overlap)" when the
+    means are ordered but an interval overlaps its neighbour's, else "does not hold" with the order
+    found; a diverged row breaks it."""
+    rows = {"SitL": sitl, "GNS": gns, "solver only": solver}
+    if not all(r.get("finite") in (True, "True") for r in rows.values()):
+        return "undecided (a diverged row)"
+    m = {k: float(r["mse20"]) for k, r in rows.items()}
+    found = " < ".join(sorted(m, key=m.get))
+    if not m["SitL"] < m["GNS"] < m["solver only"]:
+        return f"does not hold (found {found})"
+    lo = {k: r.get("mse20_lo") for k, r in rows.items()}
+    hi = {k: r.get("mse20_hi") for k, r in rows.items()}
+    if any(v is None or math.isnan(float(v)) for v in list(lo.values()) + list(hi.values())):
+        return "holds by the means only (no intervals)"
+    if float(hi["SitL"]) < float(lo["GNS"]) and float(hi["GNS"]) < float(lo["solver only"]):
+        return "holds (the 95 % intervals are disjoint)"
+    return "holds by the means only (intervals overlap)"
 
 
 def diverged_verdict(finite: bool, ref_finite: bool, blown: bool = False, ref_blown: bool = False) -> dict:

@@ -87,3 +87,19 @@ def test_a_ratio_prints_with_the_digits_that_tell_it_from_its_interval():
     assert ratio_digits(1.0, 1.0, 1.0) == 3                       # equal values need no more digits
     assert ratio_digits(float("inf"), float("nan"), None) == 3    # diverged sides print as words
     assert ratio_digits(1.0 + 1e-9, 1.0, 1.0 + 2e-9) == 6
+
+
+def test_the_papers_ordering_is_judged_by_disjoint_intervals():
+    """sitl/study.py's verdict on Table 1's ordering (SitL < GNS < solver only) on MSE_20."""
+    from sitl.study import paper_ordering
+
+    def row(m, lo, hi, finite=True):
+        return {"mse20": m, "mse20_lo": lo, "mse20_hi": hi, "finite": finite}
+    assert paper_ordering(row(1e-7, 0.9e-7, 1.1e-7), row(1e-5, 0.9e-5, 1.1e-5), row(1e-3, 0.9e-3, 1.1e-3)) == \
+        "holds (the 95 % intervals are disjoint)"
+    assert paper_ordering(row(1e-7, 0.5e-7, 2e-6), row(1e-6, 0.9e-6, 1.1e-6), row(1e-3, 0.9e-3, 1.1e-3)) == \
+        "holds by the means only (intervals overlap)"
+    assert paper_ordering(row(1e-5, 0.9e-5, 1.1e-5), row(1e-7, 0.9e-7, 1.1e-7), row(1e-3, 0.9e-3, 1.1e-3)) == \
+        "does not hold (found GNS < SitL < solver only)"
+    assert paper_ordering(row(1e-7, 0.9e-7, 1.1e-7), row(1e-5, 0.9e-5, 1.1e-5, finite="False"),
+                          row(1e-3, 0.9e-3, 1.1e-3)).startswith("undecided")
