@@ -23,16 +23,6 @@ _ROOT = _TESTS.parent
 if os.environ.get("SPH_TEST_JAX_CACHE", "1") != "0":
     os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_ROOT / ".pytest_cache" / "jax-compilation-cache"))
     os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
-# XLA's CPU backend compiles the tests' programs at LLVM -O0 (--xla_backend_optimization_level=0, inherited
-# by every process a test starts): a smoke program runs a few steps, so its compilation is most of its
-# time. Measured on this project's 2-core machine under the same load, 2026-12-06: a smoke SitL training
-# 98 -> 72 s (XLA compilation 70 -> 41 s, the same validation MSE_20 8.54e-7), test_tgv_short +
-# test_gradients + test_conservation 244 -> 183 s, all passing. The product never sets it (the scripts
-# and benchmarks run XLA's default -O2 code); SPH_TEST_XLA_O0=0 turns it off, and a level already in
-# XLA_FLAGS is kept.
-_OPT = "--xla_backend_optimization_level"
-if os.environ.get("SPH_TEST_XLA_O0", "1") != "0" and _OPT not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_OPT}=0".strip()
 for _p in (str(_ROOT), str(_TESTS)):
     if _p not in sys.path:
         sys.path.insert(0, _p)

@@ -11,14 +11,13 @@ import of LagrangeBench and JAX instead of one per test: most of a script's time
 namespace with its own argv, its output and any exception kept apart, so each test still judges
 exactly its own script's output."""
 import json
-import os
 import subprocess
 import textwrap
 from pathlib import Path
 
 import pytest
 
-from sph_test_helpers import require_lb_env
+from sph_test_helpers import require_lb_env, sitl_env
 
 ROOT = Path(__file__).resolve().parents[2]
 LB_PYTHON = ROOT / ".venv-lb" / "bin" / "python"
@@ -284,8 +283,7 @@ def _run_all(jobs) -> dict:
     if not LB_PYTHON.exists():
         pytest.fail(f"{ROOT / '.venv-lb'} is missing or incomplete: run `make setup-lb`", pytrace=False)
     require_lb_env()
-    env = dict(os.environ, PYTHONPATH=str(ROOT), JAX_PLATFORMS="cpu", PYTHONNOUSERSITE="1", WANDB_MODE="disabled")
-    env.pop("VIRTUAL_ENV", None)
+    env = dict(sitl_env(), PYTHONPATH=str(ROOT))
     proc = subprocess.run([str(LB_PYTHON), "-c", _DRIVER], input=json.dumps(jobs), cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=1800)
     assert proc.returncode == 0, proc.stderr[-4000:]

@@ -13,7 +13,6 @@ when .venv-lb is missing."""
 import csv
 import json
 import math
-import os
 import shutil
 import subprocess
 import time
@@ -21,17 +20,13 @@ from pathlib import Path
 
 import pytest
 
-from sph_test_helpers import require_lb_env, seed_sitl_dataset
+from sph_test_helpers import require_lb_env, seed_sitl_dataset, sitl_env as _env
 
 from sitl import settings as S
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _env():
-    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
-    env.pop("VIRTUAL_ENV", None)
-    return env
 
 
 def _make(results):
