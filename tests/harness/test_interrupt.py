@@ -44,6 +44,8 @@ def test_an_interrupt_inside_a_gc_callback_is_not_lost(monkeypatch):
 
 
 SCRIPT = """
+import faulthandler
+faulthandler.dump_traceback_later(60, exit=True)   # a hang shows where it is (every thread's stack), then exit 1
 import threading, os, signal
 import jax, jax.numpy as jnp
 from lab.cli import script_main
@@ -61,11 +63,14 @@ script_main(work)
 
 
 def test_ctrl_c_in_a_computation_exits_130_with_one_line():
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    """Twice in the full suite (2026-12-06, under load) a child hung until the 120 s timeout with no
+    output, and never alone: the child now runs with no stdin and CPU only, and dumps every thread's
+    stack after 60 s, so a hang says where it is."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "JAX_PLATFORMS": "cpu"}
     env.pop("SPH_TRACEBACK", None)
     for _ in range(3):
         proc = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, capture_output=True, text=True,
-                              timeout=120)
+                              timeout=120, stdin=subprocess.DEVNULL)
         assert proc.returncode == 130, (proc.returncode, proc.stderr[-2000:])
         assert proc.stderr.strip().splitlines()[-1].startswith("interrupted:"), proc.stderr[-2000:]
         assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
