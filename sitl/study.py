@@ -491,6 +491,7 @@ def _ci(value, lo, hi, digits: int = 3) -> str:
     nan = lo is None or hi is None or any(isinstance(x, float) and math.isnan(x) for x in (lo, hi))
     return " (one window: no interval)" if nan else f" [{_f(lo, digits)}, {_f(hi, digits)}]"
 
+
 def _other_work(cores) -> str:
     """', beside x cores of other work' when the budget's timing measured it (lab.other_load)."""
     return "" if cores is None else f", beside {cores:.2g} cores of other work"

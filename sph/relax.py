@@ -42,7 +42,7 @@ class Relaxation:
                   quench removes the kinetic energy the relaxation keeps sloshing around, so the
                   particles settle instead of still moving at u_max ~ 0.025 after 5000 steps
     eta           dynamic viscosity during the relaxation; None = the scene's material.eta (JAX-SPH's
-                  choice). At nu = 100 and dx 0.02 the viscous limit makes dt ~ 1e-7: e.g. eta 0.01
+                  choice). At nu = 100 and dx 0.02 the viscous limit makes dt 1e-6 (cfl 0.25, h = dx): eta 0.01
                   relaxes at the convective dt instead
     """
 
