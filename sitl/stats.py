@@ -40,6 +40,12 @@ def bootstrap_ci(values, n_boot: int = 2000, level: float = LEVEL, seed: int = 0
     return (float(np.quantile(means, a)), float(np.quantile(means, 1.0 - a)))
 
 
+def _interval(samples, level: float) -> tuple:
+    """(lo, hi): the central `level` percentile interval of bootstrap samples."""
+    lo, hi = (1.0 - level) / 2, 1.0 - (1.0 - level) / 2
+    return float(np.quantile(samples, lo)), float(np.quantile(samples, hi))
+
+
 def paired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) -> tuple:
     """(mean(a) / mean(b), lo, hi) with the paired bootstrap interval of the ratio: a and b are the
     per-window values of two models on the same windows, in the same order. NaN when either has a
@@ -53,9 +59,7 @@ def paired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) 
     if len(va) == 1:
         return (ratio, math.nan, math.nan)
     idx = _resample(len(va), n_boot, seed)
-    r = va[idx].mean(axis=1) / vb[idx].mean(axis=1)
-    lo, hi = (1.0 - level) / 2, 1.0 - (1.0 - level) / 2
-    return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
+    return (ratio, *_interval(va[idx].mean(axis=1) / vb[idx].mean(axis=1), level))
 
 
 def unpaired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0) -> tuple:
@@ -69,8 +73,7 @@ def unpaired_ratio(a, b, n_boot: int = 2000, level: float = LEVEL, seed: int = 0
     if min(len(va), len(vb)) == 1:
         return (ratio, math.nan, math.nan)
     r = va[_resample(len(va), n_boot, seed)].mean(axis=1) / vb[_resample(len(vb), n_boot, seed + 1)].mean(axis=1)
-    lo, hi = (1.0 - level) / 2, 1.0 - (1.0 - level) / 2
-    return (ratio, float(np.quantile(r, lo)), float(np.quantile(r, hi)))
+    return (ratio, *_interval(r, level))
 
 
 MIN_WINDOWS = 10
