@@ -19,7 +19,7 @@ _VECTOR = ("velocity", "momentum_velocity")
 
 
 def _slab(fname: str, path: str, t: int, shape: tuple, dtype: str, precision: int) -> str:
-    n_frames, rest = shape[0], shape[1:]
+    rest = shape[1:]
     dims = " ".join(str(d) for d in rest)
     start = " ".join(["%d" % t] + ["0"] * len(rest))
     stride = " ".join(["1"] * len(shape))

@@ -345,6 +345,11 @@ def table(exp: S.Experiment, rows: dict, frozen_e_kin: float = None) -> list:
             row.update(diverged_verdict(m["finite"], ref["metrics"]["finite"], row["blew_up"],
                                         blew_up(ref["metrics"].get("e_kin"), frozen_e_kin)))
         out.append(row)
+    order = [rows.get(n) for n in ("sitl_uniform", "gns", f"solver_L{exp.model.substeps}_uniform")]
+    if all(r is not None and "metrics" in r for r in order):
+        windows = [r["metrics"]["per_window"]["mse20"] for r in order]
+        if len({len(w) for w in windows}) == 1:  # the same test windows (GNS with 2 input positions)
+            next(o for o in out if o["name"] == "sitl_uniform")["paper_ordering"] = paper_ordering(*windows, n_boot)
     return out
 
 
@@ -392,9 +397,9 @@ def authors_table1(flat: list) -> list:
     for r in [by[n] for n in ("gns",) if n in by] + rows:
         lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | "
                      f"{_f(r.get('e_kin'))} |")
-    order = [pc, by.get("gns"), next((r for r in rows if r["kind"] == "solver"), None)]
-    if all(r is not None for r in order):
-        lines += ["", f"The paper's ordering (SitL < GNS < solver only) on MSE_20 here: {paper_ordering(*order)}."]
+    if pc is not None and pc.get("paper_ordering"):
+        lines += ["", f"The paper's ordering (SitL < GNS < solver only) on MSE_20 here, by paired intervals on the "
+                      f"same test windows: {pc['paper_ordering']}."]
     if pc is not None and pc.get("ratio_mse20"):
         factor = 1.0 / pc["ratio_mse20"]
         ok = factor >= POSITIVE_CONTROL_FACTOR and pc["finite"]
@@ -404,25 +409,13 @@ def authors_table1(flat: list) -> list:
     return lines
 
 
-def paper_ordering(sitl: dict, gns: dict, solver: dict) -> str:
-    """Whether MSE_20 orders SitL < GNS < solver only (rows of study.csv): "holds" when the three
-    95 % intervals are disjoint in that order, "holds by the means only (intervals overlap)" when the
-    means are ordered but an interval overlaps its neighbour's, else "does not hold" with the order
-    found; a diverged row breaks it."""
-    rows = {"SitL": sitl, "GNS": gns, "solver only": solver}
-    if not all(r.get("finite") in (True, "True") for r in rows.values()):
-        return "undecided (a diverged row)"
-    m = {k: float(r["mse20"]) for k, r in rows.items()}
-    found = " < ".join(sorted(m, key=m.get))
-    if not m["SitL"] < m["GNS"] < m["solver only"]:
-        return f"does not hold (found {found})"
-    lo = {k: r.get("mse20_lo") for k, r in rows.items()}
-    hi = {k: r.get("mse20_hi") for k, r in rows.items()}
-    if any(v is None or math.isnan(float(v)) for v in list(lo.values()) + list(hi.values())):
-        return "holds by the means only (no intervals)"
-    if float(hi["SitL"]) < float(lo["GNS"]) and float(hi["GNS"]) < float(lo["solver only"]):
-        return "holds (the 95 % intervals are disjoint)"
-    return "holds by the means only (intervals overlap)"
+def paper_ordering(sitl, gns, solver, n_boot: int = 2000) -> str:
+    """Whether MSE_20 orders SitL < GNS < solver only, from the three models' per-window MSE_20 on the
+    same test windows: the paired verdicts of SitL vs GNS and of GNS vs the solver alone
+    (stats.verdict), joined by stats.ordering, the rule of Table 1's own verdict (sitl/table1.py).
+    A diverged model (a non-finite window) leaves its step undecided."""
+    steps = [stats.verdict(*stats.paired_ratio(a, b, n_boot)[1:], n=len(a)) for a, b in ((sitl, gns), (gns, solver))]
+    return f"{stats.ordering(steps)} (SitL vs GNS {steps[0]}, GNS vs solver only {steps[1]})"
 
 
 def diverged_verdict(finite: bool, ref_finite: bool, blown: bool = False, ref_blown: bool = False) -> dict:

@@ -86,17 +86,14 @@ def comparisons(measured: dict, n_boot: int) -> list:
 
 def ordering(measured: dict, comps: list) -> str:
     """Whether the paper's ordering (SitL below GNS below solver only) holds per metric, decided by
-    the paired intervals: 'holds' when both steps are significantly lower, 'does not hold' when one
-    is significantly the other way or equal within the margin (stats.EQUAL), else 'undecided'."""
+    the paired intervals (stats.ordering)."""
     if not all(m in measured for m in S.MODELS):
         return "not all three models evaluated"
     out = []
     for label in LABELS.values():
         v = {(c["a"], c["b"]): c["verdict"] for c in comps if c["metric"] == label}
         steps = [v.get(("sitl", "gns")), v.get(("gns", "solver"))]
-        word = ("holds" if all(s == "lower" for s in steps) else
-                "does not hold" if any(s in ("higher", stats.EQUAL) for s in steps) else "undecided")
-        out.append(f"{label}: {word} (SitL vs GNS {steps[0]}, GNS vs solver {steps[1]})")
+        out.append(f"{label}: {stats.ordering(steps)} (SitL vs GNS {steps[0]}, GNS vs solver {steps[1]})")
     return "; ".join(out)
 
 

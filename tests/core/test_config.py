@@ -1,7 +1,6 @@
 """Configuration validation: every rejected value fails with sph.ConfigError naming the key path."""
 from dataclasses import dataclass, field
 
-import numpy as np
 import pytest
 
 import sph

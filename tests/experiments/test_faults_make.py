@@ -36,7 +36,7 @@ def set_smoke(folder: Path, **smoke) -> None:
 def make(results: Path, *targets, makefiles=(), **variables) -> subprocess.CompletedProcess:
     cmd = ["make", "--no-print-directory", "-f", "Makefile", *[a for f in makefiles for a in ("-f", str(f))],
            "PROFILE=smoke", f"RESULTS={results}", *[f"{k}={v}" for k, v in variables.items()], *map(str, targets)]
-    proc = subprocess.run(["nice", *cmd], cwd=ROOT, capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc
 
@@ -123,11 +123,11 @@ def test_a_failed_plot_leaves_no_record_so_the_next_make_retries(tgv, tmp_path):
 
 # -- cavity: fig6 ---------------------------------------------------------------------------------------
 def test_fig6_table_is_exactly_the_current_methods(tmp_path):
-    ldc = copy_experiment("ldc2d", tmp_path / "ldc2d", figures={"fig6": 0.05}, t_end=0.05, frames=2,
-                          analysis={"average_frames": 2, "steady_window": 0.02})
-    cfg = yaml.safe_load((ldc / "config.yaml").read_text())
-    methods = cfg["profiles"]["paper"]["methods"]
+    methods = yaml.safe_load((ROOT / "experiments" / "ldc2d" / "config.yaml").read_text())["profiles"]["paper"]["methods"]
     assert len(methods) >= 2
+    methods = methods[:2]  # two of the paper's methods: one to remove, one to keep
+    ldc = copy_experiment("ldc2d", tmp_path / "ldc2d", figures={"fig6": 0.05}, t_end=0.05, frames=2,
+                          analysis={"average_frames": 2, "steady_window": 0.02}, methods=methods)
     results = tmp_path / "results"
     fig6 = results / "fig6" / "fig6.png"
     make(results, fig6, PROTOCOL_DIRS=ldc)
