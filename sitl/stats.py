@@ -98,15 +98,3 @@ def verdict(lo: float, hi: float, n: int = MIN_WINDOWS, margin: float = EQUIVALE
     if 1.0 - margin <= lo and hi <= 1.0 + margin:
         return EQUAL
     return "lower" if hi < 1.0 else "higher" if lo > 1.0 else "undecided"
-
-
-def ordering(steps) -> str:
-    """Whether a chain a < b < c ... holds, from the paired verdicts of its steps (a vs b, b vs c, ...,
-    each from `verdict`): 'holds' when every step is significantly lower, 'does not hold' when one is
-    significantly the other way or equal within the margin, else 'undecided'. The one rule behind
-    the paper's ordering SitL < GNS < solver only in Table 1 (sitl/table1.py) and in Table 1 as its
-    authors ran it (sitl/study.py)."""
-    steps = list(steps)
-    if steps and all(s == "lower" for s in steps):
-        return "holds"
-    return "does not hold" if any(s in ("higher", EQUAL) for s in steps) else "undecided"

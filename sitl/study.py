@@ -45,6 +45,7 @@ from pathlib import Path
 from sitl import settings as S
 from sitl import stats
 from sitl.fmt import ratio_digits
+from sitl.table1 import chain_verdict
 from lab.cli import profile_main, select
 from lab.atomic import write_text
 from lab.tables import write_table
@@ -412,10 +413,10 @@ def authors_table1(flat: list) -> list:
 def paper_ordering(sitl, gns, solver, n_boot: int = 2000) -> str:
     """Whether MSE_20 orders SitL < GNS < solver only, from the three models' per-window MSE_20 on the
     same test windows: the paired verdicts of SitL vs GNS and of GNS vs the solver alone
-    (stats.verdict), joined by stats.ordering, the rule of Table 1's own verdict (sitl/table1.py).
+    (stats.verdict), joined by table1.chain_verdict, the rule of Table 1's own verdict.
     A diverged model (a non-finite window) leaves its step undecided."""
     steps = [stats.verdict(*stats.paired_ratio(a, b, n_boot)[1:], n=len(a)) for a, b in ((sitl, gns), (gns, solver))]
-    return f"{stats.ordering(steps)} (SitL vs GNS {steps[0]}, GNS vs solver only {steps[1]})"
+    return f"{chain_verdict(steps)} (SitL vs GNS {steps[0]}, GNS vs solver only {steps[1]})"
 
 
 def diverged_verdict(finite: bool, ref_finite: bool, blown: bool = False, ref_blown: bool = False) -> dict:

@@ -90,16 +90,17 @@ def test_a_ratio_prints_with_the_digits_that_tell_it_from_its_interval():
 
 
 def test_the_papers_ordering_is_judged_by_paired_verdicts():
-    """The paper's ordering SitL < GNS < solver only, by one rule (stats.ordering) in Table 1
-    (sitl/table1.py) and in Table 1 as its authors ran it (sitl/study.py's paper_ordering, from
-    per-window MSE_20 on the same windows)."""
+    """The paper's ordering SitL < GNS < solver only, by one rule (sitl.table1.chain_verdict) in
+    Table 1 and in Table 1 as its authors ran it (sitl/study.py's paper_ordering, from per-window
+    MSE_20 on the same windows)."""
     from sitl.study import paper_ordering
+    from sitl.table1 import chain_verdict
 
-    assert stats.ordering(["lower", "lower"]) == "holds"
-    assert stats.ordering(["lower", stats.EQUAL]) == "does not hold"
-    assert stats.ordering(["higher", "lower"]) == "does not hold"
-    assert stats.ordering(["lower", "undecided"]) == "undecided"
-    assert stats.ordering([]) == "undecided"
+    assert chain_verdict(["lower", "lower"]) == "holds"
+    assert chain_verdict(["lower", stats.EQUAL]) == "does not hold"
+    assert chain_verdict(["higher", "lower"]) == "does not hold"
+    assert chain_verdict(["lower", "undecided"]) == "undecided"
+    assert chain_verdict([]) == "undecided"
     rng = np.random.default_rng(0)
     hard = rng.uniform(0.5, 2.0, 40)          # a window's difficulty, shared by every model
     sitl, gns, solver = 1e-7 * hard, 1e-5 * hard, 1e-3 * hard
