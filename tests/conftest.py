@@ -47,14 +47,15 @@ xla_cpu.set_cpu_defaults()
 sph.precision.enable_x64()  # tests compare float64 results; sph itself leaves the flag alone
 
 
-# The longest test files first (seconds of one file alone on the 2-core CI machine, clean clone,
-# 2026-12-06): with `--dist loadfile` each file goes to the first free worker in this order, so a
-# long file taken last is a long tail. Longest first (LPT) keeps both workers busy to the end.
-LONGEST_FIRST = ("test_sitl_pipeline.py", "test_sitl_study.py", "test_sitl_model.py", "test_cell_list.py",
-                 "test_stability_pipeline.py", "test_faults_make.py", "test_gradcheck_pipeline.py",
-                 "test_ldc2d_pipeline.py", "test_parallel.py", "test_sitl_cost.py", "test_accuracy_atlas.py",
-                 "test_dambreak2d_pipeline.py", "test_faults.py", "test_gradients.py", "test_report.py",
-                 "test_tgv3d_pipeline.py", "test_surface_tension.py", "test_inverse_pipeline.py")
+# The longest test files first (seconds of test time per file in a clean-clone `make test`, 2 workers on the
+# 2-core machine, 2026-12-06: 291 s test_sitl_pipeline ... 40 s test_surface_tension): with `--dist
+# loadfile` each file goes to the first free worker in this order, so a long file taken last is a long
+# tail. Longest first (LPT) keeps both workers busy to the end.
+LONGEST_FIRST = ("test_sitl_pipeline.py", "test_cell_list.py", "test_sitl_study.py", "test_gradients.py",
+                 "test_faults_make.py", "test_stability_pipeline.py", "test_parallel.py", "test_faults.py",
+                 "test_tgv3d_pipeline.py", "test_sitl_model.py", "test_inverse_pipeline.py", "test_gradcheck_pipeline.py",
+                 "test_accuracy_atlas.py", "test_sitl_cost.py", "test_report.py", "test_ldc2d_pipeline.py",
+                 "test_dambreak2d_pipeline.py", "test_surface_tension.py")
 
 
 def pytest_configure(config):
