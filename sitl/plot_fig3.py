@@ -89,7 +89,10 @@ def plot_mse(records: dict, dest: Path, title: str):
         a = np.asarray(records[m]["mse_steps"], np.float64)
         steps = np.arange(1, a.shape[1] + 1)
         ok = np.isfinite(a).all(axis=0)
-        ax.plot(steps[ok], a[:, ok].mean(axis=0), color=color, label=f"{lab} (mean of {a.shape[0]} windows)")
+        # the solver alone dashed and on top: where SitL equals it, SitL's line would hide it
+        solver = m == "solver"
+        ax.plot(steps[ok], a[:, ok].mean(axis=0), color=color, ls="--" if solver else "-", zorder=3 if solver else 2,
+                label=f"{lab} (mean of {a.shape[0]} windows)")
         ax.fill_between(steps[ok], a[:, ok].min(axis=0), a[:, ok].max(axis=0), color=color, alpha=0.2)
         if not ok.all():
             ax.axvline(steps[~ok][0], color=color, ls=":", lw=1, label=f"{lab}: non-finite from step {steps[~ok][0]}")
