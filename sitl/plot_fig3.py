@@ -69,15 +69,19 @@ TABLE_STEPS = (1, 5, 20, 50, 100, 200, 500)
 
 
 def mse_table(records: dict) -> list:
-    """Rows {model, step, mean, min, max, n_windows} of the MSE at TABLE_STEPS (within the rollouts)."""
+    """Rows {model, step, mean, min, max, n_windows, diverged} of the MSE at TABLE_STEPS (within the
+    rollouts): mean, min and max over the windows still finite at that step, `diverged` the number
+    that are not (their MSE is inf or NaN; a mean over them would be inf). All diverged: NaN."""
     rows = []
     for m, rec in records.items():
         a = np.asarray(rec["mse_steps"], np.float64)            # (windows, steps)
         for k in TABLE_STEPS:
             if k <= a.shape[1]:
                 col = a[:, k - 1]
-                rows.append({"model": m, "step": k, "mean": float(np.mean(col)), "min": float(np.min(col)),
-                             "max": float(np.max(col)), "n_windows": int(a.shape[0])})
+                ok = col[np.isfinite(col)]
+                stat = (lambda f: float(f(ok)) if ok.size else float("nan"))  # noqa: E731
+                rows.append({"model": m, "step": k, "mean": stat(np.mean), "min": stat(np.min), "max": stat(np.max),
+                             "n_windows": int(a.shape[0]), "diverged": int(a.shape[0] - ok.size)})
     return rows
 
 
@@ -105,9 +109,10 @@ def plot_mse(records: dict, dest: Path, title: str):
 
 def write_table(rows: list, dest: Path):
     tables.write_table(dest.with_suffix(".csv"), rows)
-    lines = ["| model | step | MSE (mean) | min | max | windows |", "|---|---|---|---|---|---|"]
-    lines += [f"| {r['model']} | {r['step']} | {r['mean']:.3g} | {r['min']:.3g} | {r['max']:.3g} | {r['n_windows']} |"
-              for r in rows]
+    lines = ["| model | step | MSE (mean of the finite windows) | min | max | windows | diverged |",
+             "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['model']} | {r['step']} | {r['mean']:.3g} | {r['min']:.3g} | {r['max']:.3g} | {r['n_windows']} | "
+              f"{r['diverged']} |" for r in rows]
     write_text(dest.with_suffix(".md"), "\n".join(lines) + "\n")
 
 
