@@ -12,6 +12,7 @@ results/<profile>/fig3/fig3.{png,pdf} (stamps), fig3_mse.png and mse_steps.{csv,
     python sitl/plot_fig3.py --profile smoke
 """
 import json
+import math
 import pickle
 from pathlib import Path
 
@@ -79,8 +80,8 @@ def mse_table(records: dict) -> list:
             if k <= a.shape[1]:
                 col = a[:, k - 1]
                 ok = col[np.isfinite(col)]
-                stat = (lambda f: float(f(ok)) if ok.size else float("nan"))  # noqa: E731
-                rows.append({"model": m, "step": k, "mean": stat(np.mean), "min": stat(np.min), "max": stat(np.max),
+                mean, lo, hi = (float(ok.mean()), float(ok.min()), float(ok.max())) if ok.size else (math.nan,) * 3
+                rows.append({"model": m, "step": k, "mean": mean, "min": lo, "max": hi,
                              "n_windows": int(a.shape[0]), "diverged": int(a.shape[0] - ok.size)})
     return rows
 
