@@ -336,8 +336,9 @@ def dataset(exp: S.Experiment, results, progress: bool = True, devices=None) -> 
                 note_input(*(path / f for f in FILES))
                 print(f"generate: up to date ({path})", flush=True)
                 return path
-        except Damaged as e:
-            integrity.set_aside_damaged(e.path, e.why, then="generating the dataset again")
+        except Damaged as e:  # every damaged file is kept aside before the regeneration overwrites it
+            for bad, why in e.files:
+                integrity.set_aside_damaged(bad, why, then="generating the dataset again")
         except (ValueError, OSError) as e:
             print(f"generate: regenerating {path} ({' '.join(str(e).split())})", flush=True)
     t0 = time.perf_counter()
@@ -372,25 +373,26 @@ def ready(exp: S.Experiment, results) -> Path:
     try:
         check(path, exp, record)
     except Damaged as e:
-        raise OutputError(f"{e.path}: damaged ({e.why}); `make sitl-data` (or any SitL target) sets it aside and "
-                         "generates the dataset again") from None
+        raise OutputError(f"{'; '.join(f'{p}: damaged ({why})' for p, why in e.files)}; `make sitl-data` (or any "
+                          "SitL target) sets it aside and generates the dataset again") from None
     return path
 
 
 class Damaged(Exception):
-    """A dataset file that differs from what generate.py wrote, or that h5py cannot open."""
+    """Dataset files that differ from what generate.py wrote, or that h5py cannot open: `files`
+    [(path, why)], every one found (a regeneration overwrites them all, so each is set aside)."""
 
-    def __init__(self, path: Path, why: str):
-        super().__init__(f"{path}: {why}")
-        self.path, self.why = Path(path), why
+    def __init__(self, path: Path, why: str, more: tuple = ()):
+        self.files = [(Path(path), why)] + [(Path(p), w) for p, w in more]
+        super().__init__("; ".join(f"{p}: {w}" for p, w in self.files))
 
 
 def check(path: Path, exp: S.Experiment, record: dict) -> dict:
     """`validate`, after each file was compared with the digest generate.json recorded for it;
-    raises `Damaged` naming the first file that differs or cannot be opened."""
-    bad = integrity.damaged(path, record.get("files"))
-    if bad is not None:
-        raise Damaged(*bad)
+    raises `Damaged` naming every file that differs (or the first that cannot be opened)."""
+    bad = integrity.all_damaged(path, record.get("files"))
+    if bad:
+        raise Damaged(*bad[0], more=bad[1:])
     return validate(path, exp)
 
 

@@ -27,14 +27,21 @@ def digests(base: Path, names) -> dict:
     return {str(n): file_digest(Path(base) / n) for n in names}
 
 
-def damaged(base: Path, recorded: Optional[dict]) -> Optional[tuple]:
-    """(path, why) of the first file below `base` that differs from its recorded digest, else None
-    (also None when nothing was recorded: files made before digests were kept)."""
+def all_damaged(base: Path, recorded: Optional[dict]) -> list:
+    """[(path, why)] of every file below `base` that differs from its recorded digest, in name order
+    (empty also when nothing was recorded: files made before digests were kept)."""
+    out = []
     for name, d in sorted((recorded or {}).items()):
         now = file_digest(Path(base) / name)
         if now != d:
-            return Path(base) / name, "missing" if now == "absent" else "changed since it was written (truncated?)"
-    return None
+            out.append((Path(base) / name, "missing" if now == "absent" else "changed since it was written (truncated?)"))
+    return out
+
+
+def damaged(base: Path, recorded: Optional[dict]) -> Optional[tuple]:
+    """(path, why) of the first file below `base` that differs from its recorded digest, else None."""
+    bad = all_damaged(base, recorded)
+    return bad[0] if bad else None
 
 
 def _read_npy_all(p: Path, n: int) -> None:

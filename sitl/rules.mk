@@ -2,8 +2,9 @@
 # Included by the top-level Makefile, which defines PROFILE and RESULTS. Everything runs in .venv-lb
 # (our core on the same jax, plus LagrangeBench 0.2.0; this project installed editable, as in .venv).
 # The dataset depends on its config and on exactly the code that can change it: generate.py,
-# settings.py and the sph modules of their code fingerprint (lab.keys, the closure of the
-# solver's and their imports, the same files that sitl.settings.data_fingerprint hashes);
+# rpf_data.py (the dataset's settings; not settings.py) and the sph modules of their code
+# fingerprint (lab.keys, the closure of the solver's and their imports, the same files that
+# sitl.settings.data_fingerprint hashes);
 # each model's metrics on the dataset, the model/training/evaluation scripts; Table 1 and Fig. 3 only
 # on the metrics / rollouts and their own script, so editing a plot or table script only re-plots.
 # Training resumes from its last checkpoint when killed (sitl/train.py).
@@ -15,7 +16,7 @@ SITL_DATA   := $(SITL_OUT)/data/2D_RPF/generate.json
 SITL_MODELS := solver gns sitl
 SITL_METRICS := $(foreach m,$(SITL_MODELS),$(SITL_OUT)/metrics/$(m).json)
 SITL_ENV    := env WANDB_MODE=disabled
-SITL_CODE   := $(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/settings.py 2>/dev/null)
+SITL_CODE   := $(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/rpf_data.py 2>/dev/null)
 
 .PHONY: fig3 table1 sitl-data sitl-cost sitl-study
 
@@ -26,7 +27,7 @@ SITL_CODE   := $(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/settin
 # (<name>.stale-<n>, one line naming it) and made again; an intact step answers "up to date".
 sitl-data: $(SITL_DATA)
 $(SITL_DATA): OUTS := $(SITL_DATA)
-$(SITL_DATA): $(SITL)/config.yaml $(SITL)/settings.py $(SITL)/generate.py $(SITL)/integrity.py $(SITL_CODE) FORCE | $(SITL_VENV) $(VENV)
+$(SITL_DATA): $(SITL)/config.yaml $(SITL)/rpf_data.py $(SITL)/generate.py $(SITL)/integrity.py $(SITL_CODE) FORCE | $(SITL_VENV) $(VENV)
 	$(DELIVER) $(SITL_PY) $(SITL)/generate.py --profile $(PROFILE) --results $(RESULTS) --no-progress
 
 # train (resumes from its checkpoint; a finished training is reused while its checkpoint is intact),

@@ -18,6 +18,8 @@ cached and resumable like Table 1's, gathered into one table and one figure:
   authors_force  the solver alone (L = model.substeps) with the authors' uniform force beside the
                  per-particle one, at study.authors_force_data's resolution and frame interval (cpu:
                  the paper's dx 0.025, frames every 0.01), no training
+  long           the reference GNS and SitL trained for study.long_steps steps, the learning-rate
+                 decay stretched over them: are the curves still moving at train.step_max?
   frozen         not a run: particles frozen at the last input frame on the same test windows
                  (sitl/baseline.py), the scale from the data alone (a model above it does worse
                  than not moving)
@@ -53,7 +55,7 @@ from lab.configtools import merge
 from lab.lock import folder_lock
 
 HERE = Path(__file__).resolve().parent
-GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force", "authors", "learnability", "fair_gns")
+GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force", "authors", "learnability", "fair_gns", "long")
 PAPER_SOLVER = {"mse5": 1.7e-7, "mse20": 7.9e-6, "e_kin": 0.13, "sinkhorn": 3.4e-7}  # paper Table 1
 
 
@@ -125,6 +127,10 @@ def runs(exp: S.Experiment) -> list:
             out.append(Run(f"gns_seq{n}", "gns", "fair_gns", f"GNS, noise {_g(t.noise_std)}, {n} input positions "
                                                              f"({n - 1} velocities; other test windows: unpaired)",
                            {"model": {"input_seq_length": n}, "models": ["gns"]}))
+    for kind in st.long_models if st.long_steps else ():
+        ref = next(r for r in out if r.group == "reference" and r.kind == kind)
+        out.append(Run(f"{kind}_long{st.long_steps}", kind, "long", f"{ref.label}, {st.long_steps} training steps",
+                       {"train": {"step_max": st.long_steps, "lr_decay_steps": st.long_steps}}))
     return out
 
 

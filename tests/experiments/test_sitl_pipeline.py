@@ -150,23 +150,31 @@ def _truncate(p: Path) -> bytes:
 
 
 @pytest.fixture(scope="module")
-def checkpoint_truncated_and_split_deleted(made):
-    """One make repairs a truncated GNS checkpoint and a validation split deleted by hand (each would
-    cost a make of its own: the dataset's regeneration re-checks every model); the two tests below
-    check what it did to each. The split is regenerated without a traceback, and the damaged
-    checkpoint is trained again from scratch on the regenerated (identical) data."""
+def damaged_and_made_again(made):
+    """One make repairs five damaged files at once (each would cost a make of its own: the dataset's
+    regeneration re-checks every model): a truncated GNS checkpoint, a validation split deleted by
+    hand, a truncated test split, a metrics file cut mid-write and a cut Table 1. The tests below
+    check what it did to each. Every damaged dataset file is set aside before the regeneration
+    overwrites it, the split is regenerated without a traceback, and the damaged checkpoint is
+    trained again from scratch on the regenerated (identical) data."""
     ckp = made / "sitl" / "ckp" / "gns"
     damaged = ckp / "best" / "params_tree.pkl"
     cut = len(_truncate(damaged)) // 2
     data = made / "sitl" / "data" / "2D_RPF"
-    original = (data / "valid.h5").read_bytes()
+    original = {"valid": (data / "valid.h5").read_bytes(), "test": _truncate(data / "test.h5")}
     (data / "valid.h5").unlink()
+    metrics = made / "sitl" / "metrics" / "solver.json"
+    good = json.loads(metrics.read_text())
+    metrics.write_text('{"mse5": 1.0, ')                      # cut mid-write
+    table = made / "table1" / "table1.md"
+    table.write_text(table.read_text()[:100])
     out = _make_table1(made)
-    return {"out": out, "ckp": ckp, "damaged": damaged, "cut": cut, "data": data, "original": original}
+    return {"out": out, "ckp": ckp, "damaged": damaged, "cut": cut, "data": data, "original": original,
+            "metrics": metrics, "good": good, "table": table}
 
 
-def test_truncated_checkpoint_is_set_aside_and_trained_again(made, checkpoint_truncated_and_split_deleted):
-    d = checkpoint_truncated_and_split_deleted
+def test_truncated_checkpoint_is_set_aside_and_trained_again(made, damaged_and_made_again):
+    d = damaged_and_made_again
     ckp, damaged, cut, out = d["ckp"], d["damaged"], d["cut"], d["out"]
     assert f"{damaged} is damaged" in out and "training gns again" in out, out[-3000:]
     assert "train gns: from scratch" in out
@@ -176,39 +184,40 @@ def test_truncated_checkpoint_is_set_aside_and_trained_again(made, checkpoint_tr
     assert json.loads((ckp / "train.json").read_text())["complete"]
     with (made / "table1" / "table1.csv").open() as f:
         assert math.isfinite(float({r["metric"]: r for r in csv.DictReader(f)}["MSE_20"]["gns_ours"]))
-    assert "is damaged" not in _make_table1(made)            # repaired: the next make trusts it
+    assert "train sitl: up to date" in out and "evaluate sitl: up to date" in out  # same data: kept
 
 
-def test_a_deleted_split_is_regenerated_in_one_line(made, checkpoint_truncated_and_split_deleted):
+def test_a_deleted_split_is_regenerated_in_one_line(made, damaged_and_made_again):
     """A split deleted by hand used to make the next make try to set the missing file aside and crash
     with a FileNotFoundError traceback, on every later make too."""
-    d = checkpoint_truncated_and_split_deleted
+    d = damaged_and_made_again
     data, original, out = d["data"], d["original"], d["out"]
     assert f"{data / 'valid.h5'}: missing" in out and "generating the dataset again" in out, out[-3000:]
     assert "Traceback" not in out
-    assert (data / "valid.h5").read_bytes() == original        # regenerated: the same data (deterministic)
+    assert (data / "valid.h5").read_bytes() == original["valid"]  # regenerated: the same data (deterministic)
 
 
-def test_truncated_split_damaged_metrics_and_table_are_set_aside_and_made_again(made):
-    """One make repairs all three (the split's regeneration re-evaluates every model anyway)."""
-    data = made / "sitl" / "data" / "2D_RPF"
-    original = _truncate(data / "test.h5")
-    metrics = made / "sitl" / "metrics" / "solver.json"
-    good = json.loads(metrics.read_text())
-    metrics.write_text('{"mse5": 1.0, ')                      # cut mid-write
-    table = made / "table1" / "table1.md"
-    table.write_text(table.read_text()[:100])
-    out = _make_table1(made)
-    assert f"{data / 'test.h5'}: damaged" in out and "generating the dataset again" in out, out[-3000:]
+def test_every_damaged_split_is_set_aside_before_the_regeneration(made, damaged_and_made_again):
+    """The truncated test split is named and kept although another split (valid.h5) was found first:
+    the regeneration overwrites every split, so each damaged one is set aside (it used to be only the
+    first)."""
+    d = damaged_and_made_again
+    data, original, out = d["data"], d["original"], d["out"]
+    assert f"{data / 'test.h5'}: damaged" in out, out[-3000:]
     aside = max(data.glob("test.h5.stale-*"), key=lambda p: p.stat().st_mtime)
-    assert len(aside.read_bytes()) == len(original) // 2      # the damaged file is kept as it was
-    assert (data / "test.h5").read_bytes() == original        # regenerated: the same data (deterministic)
+    assert len(aside.read_bytes()) == len(original["test"]) // 2    # the damaged file is kept as it was
+    assert (data / "test.h5").read_bytes() == original["test"]        # regenerated: the same data
     with h5py.File(data / "test.h5", "r") as f:
         assert f["00000/position"].shape[0] == S.load("smoke").data.frames[2]   # the whole test split
-    assert "train gns: up to date" in out and "evaluate gns: up to date" in out  # same data: kept
-    assert f"{metrics}: damaged (not readable as JSON" in out and "evaluating solver again" in out
-    assert json.loads(metrics.read_text())["mse20"] == pytest.approx(good["mse20"], rel=1e-6)
-    assert "Solver only (paper)" in table.read_text()
+
+
+def test_damaged_metrics_and_table_are_made_again(made, damaged_and_made_again):
+    d = damaged_and_made_again
+    metrics, out = d["metrics"], d["out"]
+    assert f"{metrics}: damaged (not readable as JSON" in out and "evaluating solver again" in out, out[-3000:]
+    assert json.loads(metrics.read_text())["mse20"] == pytest.approx(d["good"]["mse20"], rel=1e-6)
+    assert "Solver only (paper)" in d["table"].read_text()
+    assert "is damaged" not in _make_table1(made)            # repaired: the next make trusts it
 
 
 def test_a_second_training_of_one_model_waits_for_the_first(tmp_path):

@@ -454,7 +454,32 @@ def test_cpu_study_plans_the_issue_39_runs_against_the_right_solver():
     ref = {n: (study.reference_of(plan[n], exp, rows) or {}).get("run") for n in plan}
     assert ref["sitl_uniform"].name == "solver_L3_uniform" and ref["sitl_extra_inputs"].name == "solver_L3"
     assert ref["gns_noise0.0001"].name == "solver_L3" and ref["solver_L3_uniform"] is None
+    # the long trainings: the reference GNS and SitL for study.long_steps, the lr decay stretched over them
+    long = {n: plan[n] for n in plan if plan[n].group == "long"}
+    assert set(long) == {"gns_long20000", "sitl_long20000"}
+    for n, r in long.items():
+        rexp = study.run_experiment("cpu", exp, r)
+        assert (rexp.train.step_max, rexp.train.lr_decay_steps) == (20000, 20000)
+        assert rexp.model == exp.model and rexp.train.noise(r.kind) == exp.train.noise(r.kind)
+    assert ref["sitl_long20000"].name == ref["gns_long20000"].name == "solver_L3"
     # every run's settings load (the overrides name real, valid keys)
     for r in plan.values():
         if r.group not in ("authors_force", "equal_cost"):
             study.run_experiment("cpu", exp, r)
+
+
+def test_the_datasets_key_reads_its_own_settings_not_the_studys():
+    """An edit to the study (or training) settings leaves the dataset's key as it is: the key hashes
+    rpf_data.py and generate.py, not settings.py; a change of the data's own settings changes it."""
+    import dataclasses
+
+    from sph.errors import ConfigError
+
+    exp = S.load("cpu")
+    longer = dataclasses.replace(exp, study=dataclasses.replace(exp.study, long_steps=50000),
+                                 train=dataclasses.replace(exp.train, step_max=1000))
+    assert S.data_fingerprint(longer) == S.data_fingerprint(exp)
+    finer = dataclasses.replace(exp, data=dataclasses.replace(exp.data, dx=0.025))
+    assert S.data_fingerprint(finer) != S.data_fingerprint(exp)
+    with pytest.raises(ValueError, match=r"study\.long_models\[0\]"):
+        S.load("cpu", overrides={"study": {"long_models": ["solver"]}})
