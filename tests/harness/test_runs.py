@@ -143,15 +143,17 @@ def test_file_keys_ignore_docstrings_and_comments(tmp_path, monkeypatch):
 
 
 def test_sitl_dataset_prerequisites_are_its_code_closure(capsys):
-    """sitl/rules.mk makes the dataset depend on `python3 -P lab/keys.py generate.py settings.py`:
-    the generator, the RPF case and the solver's modules, not the file formats nor the whole of sph/."""
-    files = [ROOT / "sitl" / "generate.py", ROOT / "sitl" / "settings.py"]
+    """sitl/rules.mk makes the dataset depend on `python3 -P lab/keys.py generate.py rpf_data.py`:
+    the generator, the dataset's settings, the RPF case and the solver's modules, not the file formats
+    nor the whole of sph/ (and the same files as sitl.settings.data_fingerprint hashes)."""
+    files = [ROOT / "sitl" / "generate.py", ROOT / "sitl" / "rpf_data.py"]
     keys.main([str(f) for f in files])
     listed = set(capsys.readouterr().out.split())
     assert {"sitl/generate.py", "sph/cases/rpf.py", "sph/solver.py", "sph/rollout.py"} <= listed
     assert not {"lab/io.py", "lab/animate.py", "sph/cases/ldc.py"} & listed
-    assert "$(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/settings.py" in \
+    assert "$(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/rpf_data.py" in \
         (ROOT / "sitl" / "rules.mk").read_text()
+    assert 'code_fingerprint([HERE / "generate.py", HERE / "rpf_data.py"])' in (ROOT / "sitl" / "settings.py").read_text()
 
 
 def test_import_sph_leaves_x64_off():
