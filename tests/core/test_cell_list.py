@@ -49,8 +49,9 @@ def _positions(kind, domain, seed):
     return np.mod(jitter(r, 0.05 * dx, seed), box), dx  # jittered lattice, wrapped into the box
 
 
-@pytest.mark.parametrize("dtype", ["float64", "float32"])
-@pytest.mark.parametrize("kind", ["random", "lattice"])
+# float32 on the jittered lattice only: its pairs sit within the jitter (0.05 dx) of the cutoff 3 dx,
+# where float32's rounding decides membership; random positions (crowded and empty cells) rarely do
+@pytest.mark.parametrize("kind,dtype", [("random", "float64"), ("lattice", "float64"), ("lattice", "float32")])
 @pytest.mark.parametrize("name", list(DOMAINS))
 def test_pair_sets_equal_jax_md(name, kind, dtype):
     domain = DOMAINS[name]
@@ -262,13 +263,18 @@ def _blocked_scenes():
 
 
 BLOCKED_SCENES = _blocked_scenes()
+GRADIENT_SCENES = ("tank_riemann_walls_reinit", "tank_heat_tvf")
+"""The scenes whose gradient is also compared (blocked against unblocked): between them every pass
+the blocks run in 2D with walls (Riemann walls, re-initialization, heat, TVF); the other two add
+free-slip with artificial viscosity and 3D, whose forward step is compared."""
 
 
 @pytest.mark.parametrize("name", list(BLOCKED_SCENES))
 def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
     """The step evaluated in blocks of a few particles (sph.blocks, every pass, the last block
     overlapping the one before) gives the unblocked state to round-off, walls, Riemann
-    walls, density re-initialization and heat included, and so does a gradient through two steps."""
+    walls, density re-initialization and heat included, and so does a gradient through two steps
+    (GRADIENT_SCENES)."""
     import sph.blocks
 
     scene = BLOCKED_SCENES[name]
@@ -288,7 +294,7 @@ def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
                 s, _ = solver.step_fn(s, nbrs0, k)
             return jnp.sum(s.u**2) + jnp.sum(s.rho)
 
-        grad = jax.jit(jax.grad(loss))(jnp.asarray(scene.r))
+        grad = jax.jit(jax.grad(loss))(jnp.asarray(scene.r)) if name in GRADIENT_SCENES else None
         scans = str(jax.make_jaxpr(solver.step_fn)(state, nbrs, 1)).count("scan[")
         return state, grad, scans
 
@@ -304,7 +310,8 @@ def test_row_blocked_step_and_gradient_equal_unblocked(name, monkeypatch):
         scale = max(float(jnp.max(jnp.abs(b))), 1e-300)
         # p = c^2 (rho - rho_ref) cancels ~3 digits of rho's round-off
         assert float(jnp.max(jnp.abs(a - b))) <= (1e-11 if f != "p" else 1e-9) * scale, f
-    assert float(jnp.max(jnp.abs(g - g_ref))) <= 1e-10 * float(jnp.max(jnp.abs(g_ref)))
+    if name in GRADIENT_SCENES:
+        assert float(jnp.max(jnp.abs(g - g_ref))) <= 1e-10 * float(jnp.max(jnp.abs(g_ref)))
 
 
 def test_blocks_join_every_row_once(monkeypatch):
