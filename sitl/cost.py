@@ -505,7 +505,10 @@ def write_outputs(rows: list, exp: S.Experiment, results, profile: str, key: str
     plot(rows, out / "cost.png", f"RPF 2D, {exp.data.n_particles} particles ({profile or Path(results).name}): "
                                   f"coarse step = {exp.data.write_every} dt")
     made = integrity.digests(out, ["cost.csv", "cost.md", "cost.png"])
-    write_text(out / "cost.json", json.dumps({"key": key, "rows": rows, "outputs": made}, indent=2) + "\n")
+    # the dataset's fingerprint: a reader of the rows (sitl/study.py's fine-solver floor) checks it
+    data_fp = json.loads((S.data_dir(results) / "generate.json").read_text()).get("fingerprint")
+    write_text(out / "cost.json", json.dumps({"key": key, "data_fingerprint": data_fp, "rows": rows, "outputs": made},
+                                             indent=2) + "\n")
     stamp_points(results, rows)
 
 

@@ -43,6 +43,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Optional
 
 from sitl import settings as S
 from sitl import stats
@@ -390,6 +391,50 @@ POSITIVE_CONTROL_FACTOR = 10.0
 least this many times below its biased solver's (issue 39)."""
 
 
+def fine_floor(results) -> Optional[float]:
+    """The fine solver's test MSE_20 (sitl/cost.py's cost.json, `make sitl-cost`): the floor of what
+    two stored frames cannot tell, when cost.json was made on the dataset there now; else None."""
+    try:
+        cost = json.loads((S.out_dir(results) / "cost.json").read_text())
+        data = json.loads((S.data_dir(results) / "generate.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if cost.get("data_fingerprint") != data.get("fingerprint"):
+        return None
+    return next((float(r["mse20"]) for r in cost.get("rows", []) if r.get("kind") == "fine"), None)
+
+
+LEARNABILITY = ("sitl", "sitl_extra_inputs", "solver_L{l0}_consistent")
+"""The rows of the learnability table (issue 39 item 3): does each close the gap between the solver
+alone and the fine solver? ({l0}: model.substeps)"""
+
+
+def learnability(exp: S.Experiment, flat: list, floor: Optional[float]) -> list:
+    """Markdown lines: each learnability row's MSE_20 and the share of the gap between the solver alone
+    (at model.substeps, the same test windows) and the fine-solver floor that it closes,
+    (MSE_solver - MSE_row) / (MSE_solver - MSE_fine): 0 = the solver alone, 1 = the fine solver."""
+    l0 = exp.model.substeps
+    by = {r["name"]: r for r in flat}
+    solver = by.get(f"solver_L{l0}")
+    rows = [by[n.format(l0=l0)] for n in LEARNABILITY if n.format(l0=l0) in by]
+    if solver is None or len(rows) < 2 or not solver.get("finite"):
+        return []
+    lines = ["", f"Is the correct-force residual learnable? The gap between the solver alone (L = {l0}, MSE_20 "
+                 f"{_f(solver['mse20'])}) and the fine solver (its own integrator at the data's dt, started with "
+                 f"the velocity at t0: {_f(floor) if floor else 'not measured on this dataset: make sitl-cost'}) "
+                 "and the share of it each row closes, (MSE_solver - MSE_row) / (MSE_solver - MSE_fine):", "",
+             "| run | MSE_20 | vs solver | step 1 vs solver | gap closed |", "|---|---|---|---|---|"]
+    for r in rows:
+        closed = "" if not floor or not r.get("finite") or solver["mse20"] <= floor else \
+            f"{(solver['mse20'] - r['mse20']) / (solver['mse20'] - floor):.0%}"
+        d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
+        vs = "" if r.get("ratio_mse20") is None else \
+            f"{_f(r['ratio_mse20'], d)}{_ci(r['ratio_mse20'], r['ratio_lo'], r['ratio_hi'], d)}"
+        lines.append(f"| {r['label']} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | {vs} | "
+                     f"{_ratio_cell(r, 'ratio_mse1')} | {closed} |")
+    return lines
+
+
 def authors_table1(flat: list) -> list:
     """Table 1 as its authors ran it (markdown lines): the solver alone and SitL with the uniform
     force in the loop, GNS as before, and the positive control's factor."""
@@ -520,7 +565,8 @@ def _noise_cell(noise, sig) -> str:
     return _f(noise) if not sig else f"{_f(noise)} ({noise / sig:.2g} σ_a)"
 
 
-def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: float = None) -> str:
+def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: float = None,
+             floor: float = None) -> str:
     d = exp.data
     lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
              f"{d.dt * d.write_every:g}, W = {d.write_every})", "",
@@ -554,6 +600,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
                       f"step and {c['gns']['s_per_window']:.3g} s / window"
                       f"{_other_work(budget.get('other_load'))}."]
     lines += authors_table1(flat)
+    lines += learnability(exp, flat, floor)
     af = [r for r in flat if r["group"] == "authors_force"]
     if af:
         lines += ["", "The authors' force bug (solver only, no training):", "",
@@ -682,7 +729,7 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_table(out / "study.csv", flat, columns=COLUMNS)
-    md = markdown(exp, flat, profile, budget, sigma_a(results))
+    md = markdown(exp, flat, profile, budget, sigma_a(results), fine_floor(results))
     write_text(out / "study.md", md)
     d = exp.data
     plot(exp, flat, out / "study.png", f"SitL study, RPF 2D, {profile}: {d.n_particles} particles, "

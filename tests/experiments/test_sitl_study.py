@@ -483,3 +483,31 @@ def test_the_datasets_key_reads_its_own_settings_not_the_studys():
     assert S.data_fingerprint(finer) != S.data_fingerprint(exp)
     with pytest.raises(ValueError, match=r"study\.long_models\[0\]"):
         S.load("cpu", overrides={"study": {"long_models": ["solver"]}})
+
+
+def test_learnability_rows_say_which_share_of_the_gap_to_the_fine_solver_they_close(tmp_path):
+    """(MSE_solver - MSE_row) / (MSE_solver - MSE_fine): 0 for the solver itself, 1 at the fine solver;
+    the floor is read from cost.json only when it was made on the dataset there now."""
+    from sitl import study
+
+    exp = S.load("cpu")
+
+    def row(name, mse20, **kw):
+        return {"name": name, "label": name, "mse20": mse20, "mse20_lo": mse20, "mse20_hi": mse20, "finite": True, **kw}
+
+    flat = [row("solver_L3", 2.0e-7), row("sitl", 2.0e-7, ratio_mse20=1.0, ratio_lo=0.99, ratio_hi=1.01),
+            row("sitl_extra_inputs", 0.4e-7, ratio_mse20=0.2, ratio_lo=0.18, ratio_hi=0.22),
+            row("solver_L3_consistent", 1.1e-7)]
+    lines = study.learnability(exp, flat, 0.2e-7)
+    closed = {ln.split("|")[1].strip(): ln.split("|")[5].strip() for ln in lines if ln.startswith("| s")}
+    assert closed == {"sitl": "0%", "sitl_extra_inputs": "89%", "solver_L3_consistent": "50%"}, lines
+    assert "not measured" in " ".join(study.learnability(exp, flat, None))
+    # the floor from cost.json, only on its own dataset
+    data = S.data_dir(tmp_path)
+    data.mkdir(parents=True)
+    (data / "generate.json").write_text(json.dumps({"fingerprint": "abc"}))
+    cost = {"data_fingerprint": "abc", "rows": [{"kind": "solver", "mse20": 2e-7}, {"kind": "fine", "mse20": 2e-8}]}
+    (S.out_dir(tmp_path) / "cost.json").write_text(json.dumps(cost))
+    assert study.fine_floor(tmp_path) == 2e-8
+    (data / "generate.json").write_text(json.dumps({"fingerprint": "regenerated"}))
+    assert study.fine_floor(tmp_path) is None
