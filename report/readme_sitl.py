@@ -2,14 +2,17 @@
 SitL scripts wrote into the snapshot (the `cpu` sibling snapshot where the paper one has none,
 labelled), verbatim but for their title: `sitl_study` (sitl_study/study.md, sitl/study.py: every
 study run's MSE_5 / MSE_20 / MSE_Ekin with its interval and its paired verdict against the solver
-alone, the equal-cost budget, the authors' force check) and `sitl_table1` (table1/table1.md,
-sitl/table1.py: Table 1 with its intervals and paired comparisons) and `sitl_cost` (sitl/cost.md,
-sitl/cost.py: the accuracy-cost plane). report/readme_tables.py registers them."""
+alone, the equal-cost budget, the authors' force check), `sitl_table1` (table1/table1.md,
+sitl/table1.py: Table 1 with its intervals and paired comparisons), `sitl_cost` (sitl/cost.md,
+sitl/cost.py: the accuracy-cost plane), `sitl_curves` (sitl_study/curves.md, sitl/plot_curves.py:
+the learning curves, still moving or not) and `sitl_fig3` (fig3/mse_steps.md, sitl/plot_fig3.py: MSE
+against the rollout step to 500). report/readme_tables.py registers them."""
 from pathlib import Path
 
 from .readme_cells import find_source
 
-SOURCES = {"sitl_study": "sitl_study/study.md", "sitl_table1": "table1/table1.md", "sitl_cost": "sitl/cost.md"}
+SOURCES = {"sitl_study": "sitl_study/study.md", "sitl_table1": "table1/table1.md", "sitl_cost": "sitl/cost.md",
+           "sitl_curves": "sitl_study/curves.md", "sitl_fig3": "fig3/mse_steps.md"}
 
 
 def verbatim(snapshot: Path, rel: str) -> list:

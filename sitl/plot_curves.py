@@ -4,7 +4,7 @@ run; the solver alone's test MSE_20 at the same L as a horizontal line (its vali
 recorded; the test windows are other windows of the same trajectories' seeds). Is a curve still
 moving at its last step? `still_moving` says, from the last two validations.
 
-Writes <results>/sitl_study/curves.png and curves.csv (one row per run: steps, last loss, first and
+Writes <results>/sitl_study/curves.png, curves.csv and curves.md (one row per run: steps, last loss, first and
 last validation MSE_20, the best, and the relative change over the last two validations).
 
 Made by sitl/study.py (make sitl-study).
@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from sitl import curve  # noqa: E402
 from sitl import settings as S  # noqa: E402
+from lab.atomic import write_text  # noqa: E402
 from lab.tables import write_table  # noqa: E402
 
 MOVING = 0.05
@@ -68,12 +69,33 @@ def plot(curves: dict, solver_lines: dict, dest: Path, title: str) -> list:
     fig.savefig(dest, dpi=120)
     plt.close(fig)
     write_table(dest.with_suffix(".csv"), rows, columns=list(rows[0]) if rows else ["run"])
+    write_text(dest.with_suffix(".md"), markdown(rows, solver_lines))
     return rows
+
+
+def markdown(rows: list, solver_lines: dict) -> str:
+    """curves.md: one row per training (its steps, last training loss, first / best / last validation
+    MSE_20, the change over its last two validations and whether it is still moving)."""
+    def g(x):
+        return "" if x is None else f"{x:.3g}"
+
+    lines = ["# Learning curves of the study's trainings", "",
+             f"Validation MSE_20 on the same validation windows at each checkpoint; still moving: the last two "
+             f"validations differ by more than {MOVING:.0%}. The solver alone's test MSE_20 (other windows of the "
+             "same seeds): " + (", ".join(f"{k} {g(v)}" for k, v in solver_lines.items()) or "not evaluated") + ".", "",
+             "| run | steps | last loss | first val MSE_20 | best | last | last change | still moving |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        change = "" if r["last_change"] is None else f"{r['last_change']:+.1%}"
+        lines.append(f"| {r['run']} | {r['steps']} | {g(r['last_loss'])} | {g(r['first_val_mse20'])} | "
+                     f"{g(r['best_val_mse20'])} | {g(r['last_val_mse20'])} | {change} | "
+                     f"{'yes' if r['still_moving'] else 'no'} |")
+    return "\n".join(lines) + "\n"
 
 
 def from_study(results, rows: dict, solver_rows: dict, title: str):
     """The curves of the study's trained runs (rows: {name: row with "folder", "run"}), the solver rows'
-    test MSE_20 as lines; writes <results>/sitl_study/curves.png / .csv."""
+    test MSE_20 as lines; writes <results>/sitl_study/curves.png / .csv / .md."""
     curves = {}
     for name, r in rows.items():
         run = r["run"]

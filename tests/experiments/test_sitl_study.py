@@ -186,6 +186,9 @@ def test_every_training_keeps_its_learning_curve(study):
     assert {"sitl", "gns", "sitl_uniform"} <= set(table), sorted(table)
     c = curve.read(S.ckpt_dir(results / "sitl_study" / "runs" / "sitl", "sitl") / "curve.jsonl")
     assert float(table["sitl"]["last_val_mse20"]) == pytest.approx(c["val"][-1][2])
+    md = (results / "sitl_study" / "curves.md").read_text()            # the README's generated copy
+    assert sum(ln.startswith("| ") for ln in md.splitlines()) == len(table) + 1, md
+    assert f"| sitl | {table['sitl']['steps']} |" in md
 
 
 def test_second_call_repeats_nothing(study):
