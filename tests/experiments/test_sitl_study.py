@@ -484,7 +484,7 @@ def test_the_datasets_key_reads_its_own_settings_not_the_studys():
     assert S.data_fingerprint(longer) == S.data_fingerprint(exp)
     finer = dataclasses.replace(exp, data=dataclasses.replace(exp.data, dx=0.025))
     assert S.data_fingerprint(finer) != S.data_fingerprint(exp)
-    with pytest.raises(ValueError, match=r"study\.long_models\[0\]"):
+    with pytest.raises(ConfigError, match=r"study\.long_models\[0\]"):
         S.load("cpu", overrides={"study": {"long_models": ["solver"]}})
 
 
