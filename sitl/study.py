@@ -445,7 +445,7 @@ def authors_table1(flat: list) -> list:
         return []
     lines = ["", "Table 1 as its authors ran it (the uniform force in the solver alone and in SitL's loop; GNS as "
                  "before), and the positive control:", "",
-             "| run | MSE_5 | MSE_20 | MSE_Ekin (not comparable across particle counts) |", "|---|---|---|---|"]
+             "| run | MSE_5 | MSE_20 | MSE_Ekin |", "|---|---|---|---|"]
     for r in [by[n] for n in ("gns",) if n in by] + rows:
         lines.append(f"| {r['label']} | {_f(r['mse5'])} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | "
                      f"{_f(r.get('e_kin'))} |")

@@ -24,6 +24,9 @@ PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
     "sinkhorn": (3.4e-7, 3.7e-8, 9.3e-9),
 }
 LABELS = {"mse5": "MSE_5", "mse20": "MSE_20", "e_kin": "MSE_Ekin", "sinkhorn": "Sinkhorn"}
+LB_RPF_PARTICLES = 3200
+"""Particles of LagrangeBench's RPF 2D dataset, the one of the paper's Table 1 (LagrangeBench's
+dataset metadata; the paper's text gives no count)."""
 COLUMNS = {"solver": "Solver only", "gns": "GNS", "sitl": "SitL"}
 
 
@@ -124,7 +127,19 @@ def fmt_ci(row: dict, m: str) -> str:
     return f"{fmt(v)} [{fmt(lo)}, {fmt(hi)}]"
 
 
-def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Path:
+def e_kin_note(n_particles) -> list:
+    """MSE_Ekin is the squared error of E_kin = sum_i |v_i|^2 dx^dim (LagrangeBench's MetricsComputer,
+    evaluate/metrics.py: the sum over particles times dx**dim, v the displacement per frame interval),
+    an integral over the domain: on another particle count in the same box it is on the same scale,
+    so ours and the paper's (LB_RPF_PARTICLES) may stand side by side. Said where the counts differ."""
+    if n_particles is None or n_particles == LB_RPF_PARTICLES:
+        return []
+    return ["", f"MSE_Ekin is comparable across particle counts: LagrangeBench's E_kin is the sum of |v|^2 over the "
+                f"particles times dx^2, an integral over the box, so ours on {n_particles} particles and the paper's on "
+                f"LagrangeBench's RPF 2D dataset of {LB_RPF_PARTICLES} are on one scale."]
+
+
+def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000, n_particles: int = None) -> Path:
     measured = load_metrics(results, models)
     table = rows(measured)
     comps = comparisons(measured, n_boot)
@@ -141,6 +156,7 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
     for row in table:
         lines.append(f"| {row['metric']} | " + " | ".join(f"{fmt_ci(row, m)} | {fmt(row.get(f'{m}_paper'))}"
                                                          for m in models) + " |")
+    lines += e_kin_note(n_particles)
     if comps:
         lines += ["", "Paired comparisons on the same windows: ratio of means [95 % paired bootstrap interval].", "",
                   "| a / b | metric | ratio | verdict |", "|---|---|---|---|"]
@@ -156,7 +172,7 @@ def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000) -> Pa
 
 def main(args):
     exp = S.load(args.profile)
-    write(args.results, exp.models, args.profile, exp.eval.bootstrap)
+    write(args.results, exp.models, args.profile, exp.eval.bootstrap, exp.data.n_particles)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ digits to tell it from its interval (sitl/fmt.py)."""
 import math
 
 import numpy as np
+import pytest
 
 from sitl import stats
 
@@ -112,3 +113,49 @@ def test_the_papers_ordering_is_judged_by_paired_verdicts():
     assert paper_ordering(sitl, np.where(np.arange(40) == 3, np.nan, gns), solver, 500).startswith("undecided")
     # few windows never decide
     assert paper_ordering(sitl[:3], gns[:3], solver[:3], 500).startswith("undecided")
+
+
+_E_KIN = """
+import json
+import numpy as np
+import pytest
+from sitl import common  # noqa: F401  (sets LagrangeBench up first)
+import jax.numpy as jnp
+from jax_md import space
+from lagrangebench.evaluate.metrics import MetricsComputer
+
+out = {}
+for n in (20, 40):                      # 20 x 40 = 800 and 40 x 80 = 3200 particles in the 1 x 2 box
+    dx = 1.0 / n
+    x, y = np.meshgrid((np.arange(n) + 0.5) * dx, (np.arange(2 * n) + 0.5) * dx, indexing="ij")
+    r0 = np.stack([x.ravel(), y.ravel()], 1)
+    meta = {"dt": 0.001, "write_every": 20, "dx": dx, "dim": 2}
+    u = np.stack([np.sin(np.pi * r0[:, 1]), 0.0 * r0[:, 1]], 1)      # u = (sin(pi y), 0)
+    target = jnp.asarray(np.stack([r0 + k * 0.02 * u for k in range(3)]))
+    pred = jnp.asarray(np.stack([r0 + k * 0.02 * 1.1 * u for k in range(3)]))   # 10 % too fast
+    disp, _ = space.free()
+    m = MetricsComputer(["e_kin"], disp, meta, input_seq_length=2, stride=1)(pred, target)["e_kin"]
+    out[n * 2 * n] = {"target": float(m["target"][0]), "mse": float(m["mse"])}
+print(json.dumps(out))
+"""
+
+
+def test_lagrangebenchs_e_kin_is_an_integral_so_mse_ekin_compares_across_particle_counts():
+    """sitl/table1.py says MSE_Ekin on 800 particles stands beside the paper's on 3200: LagrangeBench's
+    MetricsComputer multiplies its sum over particles by dx^dim (issue 39 said the columns could not be
+compared, reading the sum alone). Checked on LagrangeBench's own code:
+    u = (sin(pi y), 0) in the 1 x 2 box, E_kin = integral of |u|^2 = 1 at both resolutions, and the
+    MSE_Ekin of a rollout 10 % too fast, (1.21 - 1)^2 = 0.0441, the same at both."""
+    import json
+    import subprocess
+
+    from sph_test_helpers import ROOT, require_lb_env, sitl_env
+
+    require_lb_env()
+    proc = subprocess.run([str(ROOT / ".venv-lb" / "bin" / "python"), "-c", _E_KIN], cwd=ROOT, env=sitl_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    for n in ("800", "3200"):
+        assert out[n]["target"] == pytest.approx(1.0, rel=1e-3), out
+        assert out[n]["mse"] == pytest.approx(0.21**2, rel=1e-3), out
