@@ -56,7 +56,6 @@ from lab.configtools import merge
 from lab.lock import folder_lock
 
 HERE = Path(__file__).resolve().parent
-GROUPS = ("reference", "coarse", "equal_cost", "noise", "seed", "authors_force", "authors", "learnability", "fair_gns", "long")
 PAPER_SOLVER = {"mse5": 1.7e-7, "mse20": 7.9e-6, "e_kin": 0.13, "sinkhorn": 3.4e-7}  # paper Table 1
 
 
@@ -427,9 +426,7 @@ def learnability(exp: S.Experiment, flat: list, floor: Optional[float]) -> list:
     for r in rows:
         closed = "" if not floor or not r.get("finite") or solver["mse20"] <= floor else \
             f"{(solver['mse20'] - r['mse20']) / (solver['mse20'] - floor):.0%}"
-        d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
-        vs = "" if r.get("ratio_mse20") is None else \
-            f"{_f(r['ratio_mse20'], d)}{_ci(r['ratio_mse20'], r['ratio_lo'], r['ratio_hi'], d)}"
+        vs = "" if r.get("ratio_mse20") is None else _vs_cell(r)
         lines.append(f"| {r['label']} | {_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])} | {vs} | "
                      f"{_ratio_cell(r, 'ratio_mse1')} | {closed} |")
     return lines
@@ -550,6 +547,12 @@ def sigma_a(results) -> float:
     return math.sqrt(sum(x * x for x in meta["acc_std"]) / len(meta["acc_std"]))
 
 
+def _vs_cell(r: dict) -> str:
+    """The row's MSE_20 / its solver's with the paired interval, digits enough to tell its ends apart."""
+    d = ratio_digits(r["ratio_mse20"], r.get("ratio_lo"), r.get("ratio_hi"))
+    return f"{_f(r['ratio_mse20'], d)}{_ci(r['ratio_mse20'], r['ratio_lo'], r['ratio_hi'], d)}"
+
+
 def _ratio_cell(r: dict, key: str) -> str:
     """A paired ratio with its interval, digits enough to tell its ends apart ('' when absent)."""
     if r.get(key) is None:
@@ -582,10 +585,7 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
         if r["group"] in ("authors_force", "authors"):
             continue
         tr = _train_cell(r)
-        d = ratio_digits(r.get("ratio_mse20"), r.get("ratio_lo"), r.get("ratio_hi"))
-        vs = "" if r.get("vs") is None else \
-            f"{_f(r['ratio_mse20'], d)}{_ci(r['ratio_mse20'], r['ratio_lo'], r['ratio_hi'], d)}" + \
-            ("" if r.get("paired", True) else " (unpaired)")
+        vs = "" if r.get("vs") is None else _vs_cell(r) + ("" if r.get("paired", True) else " (unpaired)")
         mse20 = _f(r["mse20"]) if not r["finite"] else f"{_f(r['mse20'])}{_ci(r['mse20'], r['mse20_lo'], r['mse20_hi'])}"
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} | "
