@@ -25,8 +25,7 @@ PAPER = {  # Table 1 of the paper: metric -> (solver only, GNS, SitL)
 }
 LABELS = {"mse5": "MSE_5", "mse20": "MSE_20", "e_kin": "MSE_Ekin", "sinkhorn": "Sinkhorn"}
 LB_RPF_PARTICLES = 3200
-"""Particles of LagrangeBench's RPF 2D dataset, the one of the paper's Table 1 (LagrangeBench's
-dataset metadata; the paper's text gives no count)."""
+"""Particles of LagrangeBench's RPF 2D dataset (its metadata; the paper's text gives no count)."""
 COLUMNS = {"solver": "Solver only", "gns": "GNS", "sitl": "SitL"}
 
 
@@ -131,12 +130,13 @@ def e_kin_note(n_particles) -> list:
     """MSE_Ekin is the squared error of E_kin = sum_i |v_i|^2 dx^dim (LagrangeBench's MetricsComputer,
     evaluate/metrics.py: the sum over particles times dx**dim, v the displacement per frame interval),
     an integral over the domain: on another particle count in the same box it is on the same scale,
-    so ours and the paper's (LB_RPF_PARTICLES) may stand side by side. Said where the counts differ."""
+    so ours stands on the scale of a run on LagrangeBench's dataset (LB_RPF_PARTICLES). Said where the
+    counts differ."""
     if n_particles is None or n_particles == LB_RPF_PARTICLES:
         return []
     return ["", f"MSE_Ekin is comparable across particle counts: LagrangeBench's E_kin is the sum of |v|^2 over the "
-                f"particles times dx^2, an integral over the box, so ours on {n_particles} particles and the paper's on "
-                f"LagrangeBench's RPF 2D dataset of {LB_RPF_PARTICLES} are on one scale."]
+                f"particles times dx^2, an integral over the box, so ours on {n_particles} particles is on the scale "
+                f"of a run on LagrangeBench's RPF 2D dataset ({LB_RPF_PARTICLES} particles)."]
 
 
 def write(results, models=S.MODELS, profile: str = "", n_boot: int = 2000, n_particles: int = None) -> Path:
