@@ -85,7 +85,10 @@ from lab.other_load import OtherLoad
 from lab.record import RECORD_COLUMNS, save_record
 
 HERE = Path(__file__).resolve().parent
-CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py", "study.py")]
+CODE = [HERE / f for f in ("cost.py", "model.py", "common.py", "evaluate.py", "settings.py")]
+"""The code the plane's numbers come from. Not study.py: the plane reads of the study only its points
+(their names, M and L, in the key) and the trained models' records (in the key too), so editing the
+study's table or adding a study run of another kind measures nothing again."""
 TRAINED = ("gns", "sitl")
 KEYS = {"mse5": "val/mse5", "mse20": "val/loss", "e_kin": "val/e_kin"}
 STYLE = {"fine": ("*", "C3"), "solver": ("o", "C0"), "gns": ("^", "C2"), "sitl": ("D", "C1")}
@@ -182,14 +185,14 @@ def n_rollouts(exp: S.Experiment) -> int:
     return windows if exp.eval.n_trajs == -1 else min(exp.eval.n_trajs, windows)
 
 
-def inputs_key(exp: S.Experiment, results, path: Path, trained: dict) -> str:
-    """Everything the outputs depend on: the dataset, the settings used, the code (with the sph
-    modules it imports), and the metrics and training record of each trained model shown."""
+def inputs_key(exp: S.Experiment, results, path: Path, plan: list, trained: dict) -> str:
+    """Everything the outputs depend on: the dataset, the settings used, the points (`plan`), the code
+    (with the sph modules it imports), and the metrics and training record of each trained model shown."""
     gen = json.loads((path / "generate.json").read_text())
     return digest({"data": [gen.get("fingerprint"), gen.get("config"), (path / "metadata.json").read_text()],
                    "cost": to_mapping(exp.cost), "eval": to_mapping(exp.eval), "model": to_mapping(exp.model),
                    "dtype": exp.train.dtype, "seed": exp.train.seed, "code": keys.code_fingerprint(CODE),
-                   "study": to_mapping(exp.study),
+                   "points": [dataclasses.astuple(p) for p in plan],
                    "trained": {name: [S.metrics_path(folder, name.split("_")[0]).read_text(),
                                       (S.ckpt_dir(folder, name.split("_")[0]) / "train.json").read_text()]
                                for name, (met, _, folder) in trained.items() if met is not None}})
@@ -406,7 +409,7 @@ def run(exp: S.Experiment, results, profile: str = "", force: bool = False) -> l
     where = {p.name: trained_run(exp, profile, results, p) for p in plan if p.kind in TRAINED}
     trained = {name: (*trained_status(rexp, folder, next(q.kind for q in plan if q.name == name), meta_text),
                       folder) for name, (rexp, folder) in where.items()}
-    key = inputs_key(exp, results, path, trained)
+    key = inputs_key(exp, results, path, plan, trained)
     out = S.out_dir(results)
     side = out / "cost.json"
     if not force and all(p.exists() for p in outputs(results)):

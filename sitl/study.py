@@ -569,7 +569,9 @@ def _noise_cell(noise, sig) -> str:
 
 
 def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: float = None,
-             floor: float = None) -> str:
+             floor: float = None, missing: tuple = ()) -> str:
+    """study.md: the table of `flat` and the tables beside it; `missing` names the study's runs that
+    are not in it (not made, or not current on this dataset and code)."""
     d = exp.data
     lines = [f"# SitL study, RPF 2D, profile {profile} ({d.n_particles} particles, frames every "
              f"{d.dt * d.write_every:g}, W = {d.write_every})", "",
@@ -590,6 +592,10 @@ def markdown(exp: S.Experiment, flat: list, profile: str, budget: dict, sig: flo
         lines.append(f"| {r['label']} | {_f(r.get('M'))} | {_noise_cell(r.get('noise_std'), sig)} | {tr} | {_f(r['mse5'])} | {mse20} | "
                      f"{_f(r.get('e_kin'))}{' *' if r.get('blew_up') else ''} | {vs} | {r.get('verdict', '')} | "
                      f"{_ratio_cell(r, 'ratio_mse1')} |")
+    if missing:
+        lines += ["", f"Not in the table: {len(missing)} of the study's runs are not made on the current dataset and "
+                      f"code ({', '.join(missing)}). `make sitl-study PROFILE={profile}` makes them (resumable); "
+                      f"`ONLY=\"...\"` a subset."]
     if budget:
         c = budget["cost"]
         lines += ["", f"Equal cost: GNS trained {budget['step_max']} steps, the cost of the reference SitL's "
@@ -729,7 +735,8 @@ def write_outputs(profile: str, exp: S.Experiment, results, plan: list, rows: di
     budget_path = out / "runs" / "gns_equal_cost" / "budget.json"
     budget = json.loads(budget_path.read_text()) if budget_path.exists() and "gns_equal_cost" in rows else None
     write_table(out / "study.csv", flat, columns=COLUMNS)
-    md = markdown(exp, flat, profile, budget, sigma_a(results), fine_floor(results))
+    missing = [r.name for r in plan if r.name not in rows]
+    md = markdown(exp, flat, profile, budget, sigma_a(results), fine_floor(results), missing)
     write_text(out / "study.md", md)
     d = exp.data
     plot(exp, flat, out / "study.png", f"SitL study, RPF 2D, {profile}: {d.n_particles} particles, "

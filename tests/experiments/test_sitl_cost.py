@@ -179,3 +179,24 @@ def test_atlas_reads_only_the_current_points(cost):
 def test_a_coarsening_that_does_not_divide_write_every_is_a_config_error():
     with pytest.raises(ConfigError, match=r"cost\.coarsening\[1\]: M = 3 does not divide data\.write_every = 10"):
         S.load("smoke", overrides={"cost": {"coarsening": [2, 3]}})
+
+
+def test_the_planes_key_reads_its_points_not_the_whole_study(cost):
+    """A study edit that adds no point to the plane (another SitL noise) leaves its key unchanged, so
+    nothing is measured again; one that adds a point (a coarse SitL at another L) changes it."""
+    results = cost[0]
+    script = (
+        "import json, sys\n"
+        "from sitl import cost, settings as S\n"
+        "path = S.data_dir(sys.argv[1])\n"
+        "keys = {}\n"
+        "for name, over in (('profile', {}), ('noise', {'study': {'noise': [0.0, 1.0e-5]}}),\n"
+        "                   ('coarse', {'study': {'substeps': [1, 2]}})):\n"
+        "    exp = S.load('smoke', overrides=over)\n"
+        "    keys[name] = cost.inputs_key(exp, sys.argv[1], path, cost.points(exp), {})\n"
+        "print(json.dumps(keys))\n")
+    proc = subprocess.run([str(ROOT / ".venv-lb" / "bin" / "python"), "-c", script, str(results)], cwd=ROOT,
+                          env=dict(_env(), PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    keys = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert keys["noise"] == keys["profile"] and keys["coarse"] != keys["profile"], keys

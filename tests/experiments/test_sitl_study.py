@@ -69,6 +69,7 @@ def test_every_run_is_made_and_tabled(study):
             assert r["verdict"] == "higher (diverged)" and float(rows["solver_L3"]["mse20"]) > 0, r
             continue
         assert r["finite"] == "True" and float(r["mse20"]) > 0, r
+    assert "Not in the table" not in md      # every run of the plan is made and current
     # a floor of sense: the solver beats particles that do not move (measured 2.9e-7 against 0.022)
     assert float(rows["frozen"]["mse20"]) > 100 * float(rows["solver_L3"]["mse20"])
     # nothing of the study went into Table 1's folders: smoke's study runs all differ from the profile
@@ -514,3 +515,14 @@ def test_learnability_rows_say_which_share_of_the_gap_to_the_fine_solver_they_cl
     assert study.fine_floor(tmp_path) == 2e-8
     (data / "generate.json").write_text(json.dumps({"fingerprint": "regenerated"}))
     assert study.fine_floor(tmp_path) is None
+
+
+def test_the_table_names_the_runs_it_does_not_show():
+    """A run of the study's plan that is not made (or not current on this dataset and code) is named
+    under the table with the command that makes it, rather than left out silently."""
+    from sitl import study
+
+    md = study.markdown(S.load("cpu"), [], "cpu", None, missing=("sitl_seed1", "sitl_L2"))
+    assert "Not in the table: 2 of the study's runs" in md and "(sitl_seed1, sitl_L2)" in md, md
+    assert "make sitl-study PROFILE=cpu" in md
+    assert "Not in the table" not in study.markdown(S.load("cpu"), [], "cpu", None)
