@@ -685,10 +685,8 @@ def plot(exp: S.Experiment, flat: list, path: Path, title: str):
             elif r.get("blew_up"):
                 ax2.annotate("blew up (MSE_Ekin above frozen)", (r["M"], r["mse20"]), textcoords="offset points",
                              xytext=(-4, 6), ha="right", fontsize=7)
-    if diverged:  # one line per M inside the axes (x markers at the top), naming every run that diverged there
-        ax2.text(0.02, 0.02, "\n".join(f"diverged at M = {_g(m)}: {', '.join(labs)}" for m, labs in sorted(diverged.items())),
-                 transform=ax2.transAxes, fontsize=7, va="bottom", ha="left",
-                 bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none"})
+    for m, labs in sorted(diverged.items()):  # x markers at the top; named in the legend, not over the data
+        ax2.plot([], [], "x", color="0.3", label=f"diverged at M = {_g(m)}: {', '.join(labs)}")
     ax2.set_xscale("log")
     ax2.set_yscale("log")
     ax2.set(xlabel="temporal coarsening M (fine steps per substep; L = W / M substeps)",
