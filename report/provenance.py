@@ -3,6 +3,7 @@ lagrangebench versions, profile. `collect()` reads them from this checkout and m
 `load_or_collect(results)` prefers a provenance.json stored with the results (a snapshot carries
 the provenance of the machine that made its runs, not of the one that copies them)."""
 import datetime
+import hashlib
 import json
 import platform
 import subprocess
@@ -97,13 +98,43 @@ def load_or_collect(results, profile: str) -> dict:
     return out
 
 
+def folder_digests(folder) -> dict:
+    """sha256 of every file below `folder` (relative path -> hex digest)."""
+    folder = Path(folder)
+    return {str(f.relative_to(folder)): hashlib.sha256(f.read_bytes()).hexdigest()
+            for f in sorted(folder.rglob("*")) if f.is_file()}
+
+
 def restored(results) -> str:
-    """Which folders of `results` came from which snapshot (`make restore`), or ''."""
+    """Which folders of `results` came from which snapshot (`make restore`) and are still as restored,
+    or ''. A folder some target wrote into since (a file changed or added: it was made again here) is
+    not named; a restore record without digests (older) names every folder it copied. Each folder is
+    named with the snapshot its files were first made for (a snapshot restored from an earlier one
+    passes the earlier one on), grouped: "a, b: from the snapshot of C (D); c: from ..."."""
     p = Path(results) / RESTORED
     if not p.exists():
         return ""
     r = json.loads(p.read_text())
-    return f"{', '.join(r['folders'])}: from the snapshot of {r['commit']} ({r['date']})"
+    digests = r.get("digests")
+    origins = r.get("origins", {})
+    groups = {}
+    for f in r["folders"]:
+        if digests is None or folder_digests(Path(results) / f) == digests.get(f):
+            o = origins.get(f, {"commit": r["commit"], "date": r["date"]})
+            groups.setdefault((o["commit"], o["date"]), []).append(f)
+    return "; ".join(f"{', '.join(fs)}: from the snapshot of {c} ({d})" for (c, d), fs in groups.items())
+
+
+def parse_restored(note: str) -> dict:
+    """folder -> {"commit", "date"} from a provenance's "restored from snapshot" line (`restored`)."""
+    out = {}
+    for group in filter(None, (g.strip() for g in (note or "").split("; "))):
+        folders, _, origin = group.partition(": from the snapshot of ")
+        commit, _, date = origin.rpartition(" (")
+        for f in (x.strip() for x in folders.split(",")):
+            if f:
+                out[f] = {"commit": commit, "date": date.rstrip(")")}
+    return out
 
 
 def display(prov: dict) -> dict:

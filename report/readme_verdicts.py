@@ -13,6 +13,7 @@ import json
 import os
 from pathlib import Path
 
+from . import provenance as prov_mod
 from .readme_cells import SourceMissing
 
 DIRTY_MARK = "(with uncommitted changes)"
@@ -57,12 +58,17 @@ def provenance(snapshot: Path) -> list:
     text = (f"Snapshot `{Path(snapshot).name}`: made at commit `{sha}` on {p.get('snapshot_date') or p.get('date')}"
             + (", from a working tree with uncommitted changes (its files are not exactly that commit's)" if dirty else "")
             + f"; report made on {p.get('cpu', 'an unrecorded CPU')}, GPU: {p.get('gpu', 'unrecorded')}.")
-    restored = p.get("restored from snapshot")
-    if restored:
-        folders, _, origin = restored.partition(": from the snapshot of ")
-        osha, odirty = _short(origin)
-        date = origin.rsplit("(", 1)[-1].rstrip(")") if "(" in origin else ""
-        n = len([x for x in folders.split(",") if x.strip()])
-        text += (f" {n} of its target folders were restored from an earlier snapshot (commit `{osha}`"
-                 + (", uncommitted changes" if odirty else "") + (f", {date}" if date else "") + ") and not run again.")
+    origins = prov_mod.parse_restored(p.get("restored from snapshot"))
+    if origins:
+        groups = {}
+        for o in origins.values():
+            groups[(o["commit"], o["date"])] = groups.get((o["commit"], o["date"]), 0) + 1
+        parts = []
+        for (commit, date), k in groups.items():
+            osha, odirty = _short(commit)
+            parts.append((f"{k} from " if len(groups) > 1 else "") + f"commit `{osha}`"
+                         + (", uncommitted changes" if odirty else "") + (f", {date}" if date else ""))
+        text += (f" {len(origins)} of its target folders were restored from "
+                 + ("an earlier snapshot" if len(groups) == 1 else "earlier snapshots")
+                 + f" ({'; '.join(parts)}) and not run again.")
     return [text]

@@ -10,9 +10,12 @@ What is restored is the snapshot as committed: tables, run records and compresse
 trajectories. A target folder is copied whole and only when results/<profile>/ has no such folder
 (or an empty one): a target run here is never mixed with, or overwritten by, the snapshot's. The
 snapshot's provenance.json and report/ are not copied (the report is rebuilt, with this machine's
-provenance); `restored.json` in results/<profile>/ names the snapshot (commit, date) and the
-folders taken from it, and the report's provenance says so ("restored from snapshot").
-Re-running a restored target (`make fig9`) replaces its folder's records with the new run's."""
+provenance); `restored.json` in results/<profile>/ names the snapshot (commit, date), the folders
+taken from it with the snapshot each was first made for (one restored into the snapshot restored from
+keeps its earlier origin) and the digest of every file it copied, and the report's provenance says so
+("restored from snapshot"). Re-running a restored target (`make fig9`) replaces its folder's records with the new
+run's, and from then on the provenance no longer counts that folder as restored (a file of it differs
+from the copy, or a file was added)."""
 import argparse
 import json
 import shutil
@@ -45,9 +48,14 @@ def restore_one(snap: Path, results: Path) -> list:
         prov = json.loads((snap / provenance.FILE).read_text()) if (snap / provenance.FILE).exists() else {}
         note = results / FILE
         old = json.loads(note.read_text()) if note.exists() else {}
-        write_text(note, json.dumps({"snapshot": str(snap), "commit": prov.get("snapshot_commit", prov.get("commit", "?")),
-                                     "date": prov.get("snapshot_date", prov.get("date", "?")),
-                                     "folders": sorted(set(old.get("folders", [])) | set(copied))}, indent=2) + "\n")
+        here = {"commit": prov.get("snapshot_commit", prov.get("commit", "?")),
+                "date": prov.get("snapshot_date", prov.get("date", "?"))}
+        earlier = provenance.parse_restored(prov.get("restored from snapshot"))  # the snapshot's own restored folders
+        digests = {**old.get("digests", {}), **{name: provenance.folder_digests(results / name) for name in copied}}
+        origins = {**old.get("origins", {}), **{name: earlier.get(name, here) for name in copied}}
+        write_text(note, json.dumps({"snapshot": str(snap), **here,
+                                     "folders": sorted(set(old.get("folders", [])) | set(copied)),
+                                     "digests": digests, "origins": origins}, indent=2) + "\n")
     return copied
 
 

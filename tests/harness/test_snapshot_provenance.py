@@ -72,3 +72,53 @@ def test_dirty_paths_reads_git_status_of_tracked_files(tmp_path, monkeypatch):
     assert provenance.dirty_paths() == []
     (repo / "a.txt").write_text("2\n")
     assert provenance.dirty_paths() == ["a.txt"] and provenance.commit().endswith(provenance.DIRTY)
+
+
+def test_a_restored_folder_made_again_here_is_no_longer_named_restored(tmp_path):
+    """`make restore` records the digest of every file it copies; a folder a target wrote into since
+    (a file changed, or one added) was made here, so the provenance stops calling it restored."""
+    from report import restore
+
+    snap, res = tmp_path / "snap", tmp_path / "results"
+    for name in ("fig9", "fig10"):
+        (snap / name).mkdir(parents=True)
+        (snap / name / "metrics.csv").write_text("a\n1\n")
+    (snap / provenance.FILE).write_text(json.dumps({"snapshot_commit": "abc1234", "snapshot_date": "2026-12-05"}))
+    assert restore.restore_one(snap, res) == ["fig10", "fig9"]
+    assert provenance.restored(res) == "fig10, fig9: from the snapshot of abc1234 (2026-12-05)"
+    (res / "fig10" / "metrics.csv").write_text("a\n2\n")              # fig10 made again here
+    assert provenance.restored(res).startswith("fig9: from the snapshot of abc1234")
+    (res / "fig9" / "fig9.png").write_bytes(b"new")                   # a new figure beside the restored table
+    assert provenance.restored(res) == ""
+    # a restore record without digests (written before they were kept) names every folder it copied
+    note = json.loads((res / provenance.RESTORED).read_text())
+    note.pop("digests")
+    (res / provenance.RESTORED).write_text(json.dumps(note))
+    assert provenance.restored(res).startswith("fig10, fig9: ")
+
+
+def test_a_folder_restored_twice_keeps_the_snapshot_it_was_made_for(tmp_path):
+    """Restoring from a snapshot that itself restored some folders from an earlier one names, for those
+    folders, the earlier snapshot (where their files were made), and the README line counts both."""
+    from report import restore
+
+    snap, res = tmp_path / "snap", tmp_path / "results"
+    for name in ("fig9", "fig10"):
+        (snap / name).mkdir(parents=True)
+        (snap / name / "metrics.csv").write_text("a\n1\n")
+    (snap / provenance.FILE).write_text(json.dumps({
+        "snapshot_commit": "bbb2222", "snapshot_date": "2026-12-06 22:00 UTC",
+        "restored from snapshot": "fig9: from the snapshot of aaa1111 (with uncommitted changes) (2026-12-05 18:21 UTC)"}))
+    restore.restore_one(snap, res)
+    note = provenance.restored(res)
+    assert note == ("fig10: from the snapshot of bbb2222 (2026-12-06 22:00 UTC); "
+                    "fig9: from the snapshot of aaa1111 (with uncommitted changes) (2026-12-05 18:21 UTC)"), note
+    assert provenance.parse_restored(note)["fig9"] == {"commit": "aaa1111 (with uncommitted changes)",
+                                                       "date": "2026-12-05 18:21 UTC"}
+    made = tmp_path / "made"
+    made.mkdir()
+    (made / provenance.FILE).write_text(json.dumps({"snapshot_commit": "ccc3333", "snapshot_date": "d",
+                                                     "restored from snapshot": note}))
+    line = readme_verdicts.provenance(made)[0]
+    assert "2 of its target folders were restored from earlier snapshots (1 from commit `bbb2222`" in line, line
+    assert "1 from commit `aaa1111`, uncommitted changes, 2026-12-05 18:21 UTC" in line, line
