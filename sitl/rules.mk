@@ -31,12 +31,12 @@ $(SITL_DATA): $(SITL)/config.yaml $(SITL)/rpf_data.py $(SITL)/generate.py $(SITL
 	$(DELIVER) $(SITL_PY) $(SITL)/generate.py --profile $(PROFILE) --results $(RESULTS) --no-progress
 
 # train (resumes from its checkpoint; a finished training is reused while its checkpoint is intact),
-# then evaluate (reused while its metrics and rollouts are intact and current). config.yaml is an
-# input: a changed model / train / eval key reaches train.py and evaluate.py, whose fingerprints decide
+# then evaluate (reused while its metrics and rollouts are intact and current), in one process
+# (sitl/fit.py). config.yaml is an input: a changed model / train / eval key reaches train.py and
+# evaluate.py, whose fingerprints decide
 $(SITL_OUT)/metrics/%.json: OUTS = $@
-$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/config.yaml $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py $(SITL)/stats.py $(SITL)/integrity.py FORCE | $(SITL_VENV) $(VENV)
-	$(DELIVER) sh -c '$(SITL_ENV) $(SITL_PY) $(SITL)/train.py --profile $(PROFILE) --results $(RESULTS) --model $* && \
-	  $(SITL_ENV) $(SITL_PY) $(SITL)/evaluate.py --profile $(PROFILE) --results $(RESULTS) --model $*'
+$(SITL_OUT)/metrics/%.json: $(SITL_DATA) $(SITL)/config.yaml $(SITL)/model.py $(SITL)/common.py $(SITL)/train.py $(SITL)/evaluate.py $(SITL)/fit.py $(SITL)/stats.py $(SITL)/integrity.py FORCE | $(SITL_VENV) $(VENV)
+	$(DELIVER) $(SITL_ENV) $(SITL_PY) $(SITL)/fit.py --profile $(PROFILE) --results $(RESULTS) --model $*
 
 SITL_TABLE1 := $(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md
 table1: $(SITL_TABLE1)
