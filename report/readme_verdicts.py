@@ -11,6 +11,7 @@ snapshot by `make readme-tables` (report/readme_tables.py registers them):
 Nothing is typed by hand: the verdicts are the report's, the provenance is the snapshot's."""
 import json
 import os
+from collections import Counter
 from pathlib import Path
 
 from . import provenance as prov_mod
@@ -60,9 +61,7 @@ def provenance(snapshot: Path) -> list:
             + f"; report made on {p.get('cpu', 'an unrecorded CPU')}, GPU: {p.get('gpu', 'unrecorded')}.")
     origins = prov_mod.parse_restored(p.get("restored from snapshot"))
     if origins:
-        groups = {}
-        for o in origins.values():
-            groups[(o["commit"], o["date"])] = groups.get((o["commit"], o["date"]), 0) + 1
+        groups = Counter((o["commit"], o["date"]) for o in origins.values())
         parts = []
         for (commit, date), k in groups.items():
             osha, odirty = _short(commit)

@@ -118,7 +118,6 @@ def test_the_papers_ordering_is_judged_by_paired_verdicts():
 _E_KIN = """
 import json
 import numpy as np
-import pytest
 from sitl import common  # noqa: F401  (sets LagrangeBench up first)
 import jax.numpy as jnp
 from jax_md import space
@@ -143,7 +142,7 @@ print(json.dumps(out))
 def test_lagrangebenchs_e_kin_is_an_integral_so_mse_ekin_compares_across_particle_counts():
     """sitl/table1.py says MSE_Ekin on 800 particles stands beside the paper's on 3200: LagrangeBench's
     MetricsComputer multiplies its sum over particles by dx^dim (issue 39 said the columns could not be
-compared, reading the sum alone). Checked on LagrangeBench's own code:
+    compared, reading the sum alone). Checked on LagrangeBench's own code:
     u = (sin(pi y), 0) in the 1 x 2 box, E_kin = integral of |u|^2 = 1 at both resolutions, and the
     MSE_Ekin of a rollout 10 % too fast, (1.21 - 1)^2 = 0.0441, the same at both."""
     import json
