@@ -143,9 +143,14 @@ include $(sort $(wildcard experiments/*/rules.mk gradcheck/rules.mk inverse/rule
 #   GROUP.<d>.<name>   the group of runs the figure shows, one of GROUPS.<d> (the groups of the folder's runs,
 #                      lab.experiment --group): each group has its own run step and stamp <group>_runs.done,
 #                      so making one figure runs only its runs (default: every run, runs.done)
+#   PYTHON.<d>         the command that runs the folder's steps and plots (default $(PY)), e.g. experiments/sitl's
+#                      LagrangeBench environment
+#   NEEDS.<d>          what every run step of the folder needs first besides its environment (e.g. a dataset made
+#                      by a library rule, or the environment's stamp)
 # DEVICES=N: every protocol run's steps on N devices (sph.parallel; a CPU-only host is split into N XLA devices),
 # equal to one device's numbers to round-off, so no run re-keys; the run's record states its device count
 PROTOCOL_DEVICES = $(if $(DEVICES),--devices $(DEVICES))
+protocol_py = $(or $(PYTHON.$(1)),$(PY))
 protocol_figdir = $(or $(FIGDIR.$(1).$(2)),$(RESULTS)/$(notdir $(1)))
 protocol_outs = $(addprefix $(call protocol_figdir,$(1),$(2))/,$(2).png $(2).pdf $(EXTRA.$(1).$(2)))
 protocol_stamp = $(RESULTS)/$(notdir $(1))/$(if $(GROUP.$(1).$(2)),$(GROUP.$(1).$(2))_)runs.done
@@ -154,27 +159,27 @@ define newline
 
 endef
 define protocol_rules
-$(RESULTS)/$(notdir $(1))/runs.done: FORCE | $(VENV)
-	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
+$(RESULTS)/$(notdir $(1))/runs.done: $(NEEDS.$(1)) FORCE | $(VENV)
+	$(call protocol_py,$(1)) -m lab.stamp $$@ $$(dir $$@) -- $(call protocol_py,$(1)) -m lab.experiment $(1) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
 $(foreach g,$(GROUPS.$(1)),$(call protocol_group,$(1),$(g))$(newline))
 $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_plot,$(1),$(p),$(patsubst plot_%.py,%,$(notdir $(p))))$(newline))
 .PHONY: $(notdir $(1))
 $(notdir $(1)): $(foreach p,$(wildcard $(1)/plot_*.py),$(call protocol_figdir,$(1),$(patsubst plot_%.py,%,$(notdir $(p))))/$(patsubst plot_%.py,%,$(notdir $(p))).png $(GIF.$(1).$(patsubst plot_%.py,%,$(notdir $(p)))))
 endef
 define protocol_group
-$(RESULTS)/$(notdir $(1))/$(2)_runs.done: FORCE | $(VENV)
-	$$(PY) -m lab.stamp $$@ $$(dir $$@) -- $$(PY) -m lab.experiment $(1) --group $(2) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
+$(RESULTS)/$(notdir $(1))/$(2)_runs.done: $(NEEDS.$(1)) FORCE | $(VENV)
+	$(call protocol_py,$(1)) -m lab.stamp $$@ $$(dir $$@) -- $(call protocol_py,$(1)) -m lab.experiment $(1) --group $(2) --profile $$(PROFILE) --results $$(RESULTS) $$(PROTOCOL_DEVICES)
 endef
 define protocol_plot
 $(call protocol_outs,$(1),$(3)): OUTS := $(call protocol_outs,$(1),$(3))
 $(call protocol_outs,$(1),$(3)) &: $(call protocol_stamp,$(1),$(3)) $(2) $(wildcard $(1)/analysis.py) $(DEPS.$(1).$(3)) lab/figures.py FORCE | $(VENV)
-	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS) --out $(call protocol_figdir,$(1),$(3))
+	$$(DELIVER) $(call protocol_py,$(1)) $(2) --profile $$(PROFILE) --results $$(RESULTS) --out $(call protocol_figdir,$(1),$(3))
 $(if $(GIF.$(1).$(3)),$(call protocol_gif,$(1),$(2),$(GIF.$(1).$(3)),$(call protocol_stamp,$(1),$(3))))
 endef
 define protocol_gif
 $(3): OUTS := $(3)
 $(3): $(4) $(2) lab/animate.py FORCE | $(VENV)
-	$$(DELIVER) $$(PY) $(2) --profile $$(PROFILE) --results $$(RESULTS) --gif $$@
+	$$(DELIVER) $(call protocol_py,$(1)) $(2) --profile $$(PROFILE) --results $$(RESULTS) --gif $$@
 endef
 $(foreach d,$(PROTOCOL_DIRS),$(eval $(call protocol_rules,$(d))))
 

@@ -57,6 +57,10 @@ and optionally, in study.py, where a folder needs more:
                   key is skipped, any other is computed again. `metrics(run, traj)` then receives traj =
                   {"result": that mapping, "folder": the run's folder, "key": its key}; such a run writes
                   no record.json (it has no metadata.json): its row of the table is its metrics
+  COMPUTE         "always": the study's `compute` keeps caches of its own (experiments/sitl: a training's
+                  checkpoints and key, an evaluation's key, in the library sitl/) and is called on every
+                  run step, whatever result.json holds: it answers "up to date" itself, and its result
+                  is written again (the same bytes when nothing changed, so the stamp stays)
 
 A run may name the `groups` it belongs to (e.g. the figures that show it): `--group G` runs only those,
 and the Makefile's protocol rules give each group of a folder's rules.mk (GROUPS.<dir>) a stamp of its own.
@@ -154,6 +158,9 @@ class Experiment:
         self.keep = tuple(getattr(self.study, "KEEP", DEFAULT_KEEP))
         self.target = getattr(self.analysis, "TARGET", self.name)
         self.table_spec = getattr(self.analysis, "TABLE", Table())
+        compute = getattr(self.study, "COMPUTE", None)
+        require(compute in (None, "always"), "COMPUTE", f"must be 'always' (or absent), got {compute!r}")
+        require(compute is None or hasattr(self.study, "compute"), "COMPUTE", "is set but study.py defines no compute")
 
     @property
     def out_dir(self) -> Path:
@@ -229,6 +236,11 @@ class Experiment:
     def computes(self) -> bool:
         return hasattr(self.study, "compute")
 
+    @property
+    def computes_always(self) -> bool:
+        """The study's compute decides itself what is current (COMPUTE = "always")."""
+        return getattr(self.study, "COMPUTE", None) == "always"
+
     def compute_key(self, run) -> str:
         """The key of a computed run: its keyed fields and the code of study.py with the sph modules it imports."""
         return digest({"run": run_key(run), "code": self._code()})
@@ -246,7 +258,7 @@ class Experiment:
         folder = self.out_dir / run.name
         label = f"{self.name}/{run.name}"
         with folder_lock(folder):  # one writer at a time (make -j2)
-            if self.result(run) is not None:
+            if not self.computes_always and self.result(run) is not None:
                 note_current(folder)
                 print(f"{label}: current (same inputs), skipped", flush=True)
                 return RunOutcome("skipped", folder)

@@ -5,7 +5,7 @@ study run's MSE_5 / MSE_20 / MSE_Ekin with its interval and its paired verdict a
 alone, the equal-cost budget, the authors' force check), `sitl_table1` (table1/table1.md,
 sitl/table1.py: Table 1 with its intervals and paired comparisons), `sitl_cost` (sitl/cost.md,
 sitl/cost.py: the accuracy-cost plane), `sitl_curves` (sitl_study/curves.md, sitl/plot_curves.py:
-the learning curves, still moving or not) and `sitl_fig3` (fig3/mse_steps.md, sitl/plot_fig3.py: MSE
+the learning curves, still moving or not) and `sitl_fig3` (fig3/mse_steps.md, experiments/sitl/plot_fig3.py: MSE
 against the rollout step to 500). report/readme_tables.py registers them."""
 from pathlib import Path
 

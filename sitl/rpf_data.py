@@ -1,4 +1,4 @@
-"""The RPF 2D dataset's settings (`data` of sitl/config.yaml), alone in this module because the
+"""The RPF 2D dataset's settings (`data` of experiments/sitl/config.yaml), alone in this module because the
 dataset's key reads it: `sitl.settings.data_fingerprint` hashes this file and sitl/generate.py (and
 the sph modules they import), so an edit to the model, training, evaluation or study settings in
 sitl/settings.py does not make the dataset again.

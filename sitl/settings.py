@@ -1,5 +1,5 @@
 """Settings of the Solver-in-the-Loop experiment (Toshev et al. 2024, Sec. 5 / App. B, Fig. 3,
-Table 1): sitl/config.yaml -> frozen, validated dataclasses, paths and fingerprints.
+Table 1): experiments/sitl/config.yaml (linked here as sitl/config.yaml) -> frozen, validated dataclasses, paths and fingerprints.
 
 Sections of a profile: `data` (the RPF 2D dataset our solver generates), `model` (GNS / SitL
 architecture), `train` (LagrangeBench Trainer settings), `eval` (test-set inference), `fig3` and

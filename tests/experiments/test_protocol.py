@@ -5,8 +5,8 @@ script, no forwarder, no `try: from . import ... / except ImportError` import wo
 load through the harness; its rules.mk, if any, holds no recipe (the Makefile's protocol rules make
 its runs and figures; a rules.mk only says what is the folder's own: figure folders, target names).
 
-The folders not migrated yet are listed in NOT_MIGRATED, each a strict xfail: the list is exactly
-what remains, and a folder that starts to follow the protocol fails here until it leaves the list.
+experiments/sitl is one too: its runs compute (a training and an evaluation, or long rollouts) in
+LagrangeBench's environment, with the library sitl/ behind them.
 """
 import ast
 from pathlib import Path
@@ -17,10 +17,9 @@ from lab.experiment import Experiment
 
 ROOT = Path(__file__).resolve().parents[2]
 FOLDERS = sorted([p.relative_to(ROOT).as_posix() for p in (ROOT / "experiments").iterdir()
-                  if p.is_dir() and not p.name.startswith((".", "_"))] + ["gradcheck", "inverse", "sitl"])
+                  if p.is_dir() and not p.name.startswith((".", "_"))] + ["gradcheck", "inverse"])
 """Every experiment folder of the repository."""
 
-NOT_MIGRATED = ("sitl",)
 STUDY_NAMES = ("Settings", "runs", "scene", "metrics")
 
 
@@ -67,15 +66,14 @@ def check_protocol(folder: Path, tmp_path: Path) -> None:
         assert exp.runs, f"{rel}: profile {profile} has no runs"
 
 
-@pytest.mark.parametrize("name", [pytest.param(f, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
-                                                                          reason="not migrated yet"))
-                                  if f in NOT_MIGRATED else f for f in FOLDERS])
+@pytest.mark.parametrize("name", FOLDERS)
 def test_folder_follows_the_protocol(name, tmp_path):
     check_protocol(ROOT / name, tmp_path)
 
 
-def test_the_list_of_folders_not_migrated_names_only_folders():
-    assert set(NOT_MIGRATED) <= set(FOLDERS), sorted(set(NOT_MIGRATED) - set(FOLDERS))
+def test_every_folder_is_listed():
+    """The SitL experiment is a folder of the protocol like the others (its library sitl/ is not)."""
+    assert {"experiments/sitl", "experiments/droplet", "gradcheck", "inverse"} <= set(FOLDERS) and "sitl" not in FOLDERS
 
 
 def _writes_of_its_own(path: Path) -> list:
@@ -100,10 +98,10 @@ def _writes_of_its_own(path: Path) -> list:
 
 
 def test_sitl_writes_its_tables_and_records_through_the_harness():
-    """sitl/ (a training pipeline in LagrangeBench's environment, not a protocol folder yet) writes no
-    CSV of its own: its tables go through lab.tables.write_table and its records and pages through
-    lab.atomic.write_text (a killed process leaves the old file or the new one, never half of one)."""
-    scripts = sorted((ROOT / "sitl").glob("*.py"))
+    """The SitL library (sitl/, run in LagrangeBench's environment) and its folder write no CSV of their
+    own: tables go through lab.tables.write_table, records and pages through lab.atomic.write_text (a
+    killed process leaves the old file or the new one, never half of one)."""
+    scripts = sorted((ROOT / "sitl").glob("*.py")) + sorted((ROOT / "experiments" / "sitl").glob("*.py"))
     assert len(scripts) > 10
     found = {p.name: w for p in scripts if (w := _writes_of_its_own(p))}
     assert not found, found

@@ -173,7 +173,7 @@ SCRIPTS = [("fig1", "gradcheck/plot_fig1.py"), ("fig2", "inverse/plot_fig2.py"),
            ("fig5", "experiments/tgv2d/plot_fig5.py"), ("fig6", "experiments/ldc2d/plot_fig6.py"),
            ("fig7", "experiments/ldc2d/plot_fig7.py"),
            ("fig8", "experiments/dambreak2d/plot_fig8.py"), ("fig9", "experiments/tgv3d/plot_fig9.py"),
-           ("fig10", "experiments/thermal/plot_fig10.py"), ("table1", "sitl/table1.py"), ("fig3", "sitl/plot_fig3.py"),
+           ("fig10", "experiments/thermal/plot_fig10.py"), ("table1", "sitl/table1.py"), ("fig3", "experiments/sitl/plot_fig3.py"),
            ("stability", "experiments/stability/plot_stability.py"),
            ("accuracy", "experiments/accuracy/plot_accuracy.py"),
            ("report", "-m report.build")]

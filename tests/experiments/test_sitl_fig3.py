@@ -1,8 +1,8 @@
-"""Fig. 3's MSE-against-step table (sitl/plot_fig3.mse_table): a window that diverged is counted, not
+"""Fig. 3's MSE-against-step table (experiments/sitl/plot_fig3.mse_table): a window that diverged is counted, not
 averaged (its inf would make the mean inf), and the statistics are those of the finite windows."""
 import math
 
-from sitl.plot_fig3 import mse_table
+from experiments.sitl.plot_fig3 import mse_table
 
 
 def test_diverged_windows_are_counted_not_averaged():

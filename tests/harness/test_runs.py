@@ -250,3 +250,62 @@ def test_copied_experiment_folder_runs_unchanged(tmp_path):
     assert (results / "my_study" / "fig5" / "fig5.png").stat().st_size > 0
     # nothing was written into the repository's own tgv2d results
     assert not (results / "tgv2d").exists()
+
+
+_COMPUTE_STUDY = '''
+from dataclasses import dataclass
+CALLS = []
+
+@dataclass(frozen=True)
+class Settings:
+    values: tuple[int, ...] = (1, 2)
+
+@dataclass(frozen=True)
+class Run:
+    name: str
+    value: int
+
+def runs(s):
+    return [Run(f"v{v}", v) for v in s.values]
+
+def scene(run):
+    raise AssertionError("a computed run builds no scene")
+
+def compute(run, folder, progress):
+    CALLS.append(run.name)
+    return {"square": run.value ** 2}
+
+def metrics(run, traj):
+    return {"run": run.name, "err_square": traj["result"]["square"]}
+'''
+
+
+def _compute_folder(tmp_path, extra: str = ""):
+    folder = tmp_path / "calc"
+    folder.mkdir()
+    (folder / "study.py").write_text(_COMPUTE_STUDY + extra)
+    (folder / "config.yaml").write_text("profiles:\n  smoke: {values: [1, 2]}\n")
+    return folder
+
+
+@pytest.mark.parametrize("always", [False, True])
+def test_a_computed_run_is_cached_unless_its_compute_keeps_its_own_cache(tmp_path, always):
+    """A study's `compute` is skipped while its result.json holds the run's key; with COMPUTE = "always"
+    (experiments/sitl: the library's trainings keep keys of their own) it is called on every run step,
+    and the table is the same either way."""
+    from lab.experiment import Experiment
+
+    folder = _compute_folder(tmp_path, '\nCOMPUTE = "always"\n' if always else "")
+    exp = Experiment(folder, "smoke", tmp_path / "results")
+    first = exp.run_all(progress=False)
+    second = exp.run_all(progress=False)
+    assert exp.study.CALLS == (["v1", "v2"] * 2 if always else ["v1", "v2"])
+    assert list(first["err_square"]) == list(second["err_square"]) == [1, 4]
+
+
+def test_a_bad_compute_mode_is_named(tmp_path):
+    from lab.configtools import ConfigError
+    from lab.experiment import Experiment
+
+    with pytest.raises(ConfigError, match=r"COMPUTE.*'always'.*'sometimes'"):
+        Experiment(_compute_folder(tmp_path, '\nCOMPUTE = "sometimes"\n'), "smoke", tmp_path / "results")

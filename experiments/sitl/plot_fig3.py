@@ -5,11 +5,12 @@ and their range). The velocity is what LagrangeBench sees: the periodic displace
 consecutive frames over the frame interval dt * write_every (stamp s = s coarse steps after the last
 input frame; s = 0 is the input).
 
-Reads the long rollouts of sitl/fig3_rollouts.py (results/<profile>/fig3/rollouts/<model>/); writes
-results/<profile>/fig3/fig3.{png,pdf} (stamps), fig3_mse.png and mse_steps.{csv,md} (MSE at steps
-1, 5, 20, 50, 100, 200, 500 as far as the rollouts reach).
+Reads the long rollouts of the folder's fig3 runs (study.py: sitl/fig3_rollouts.py, in
+results/<profile>/fig3/rollouts/<model>/); writes into --out (default results/<profile>/fig3)
+fig3.{png,pdf} (stamps), fig3_mse.png and mse_steps.{csv,md} (MSE at steps 1, 5, 20, 50, 100, 200,
+500 as far as the rollouts reach).
 
-    python sitl/plot_fig3.py --profile smoke
+    python experiments/sitl/plot_fig3.py --profile smoke     (make fig3 runs the rollouts first)
 """
 import json
 import math
@@ -117,7 +118,7 @@ def write_table(rows: list, dest: Path):
     write_text(dest.with_suffix(".md"), "\n".join(lines) + "\n")
 
 
-def plot(results, exp: S.Experiment, profile: str) -> Path:
+def plot(results, exp: S.Experiment, profile: str, out=None) -> Path:
     meta = json.loads((S.data_dir(results) / "metadata.json").read_text())
     box = np.array([b[1] - b[0] for b in meta["bounds"]])
     frame_dt = meta["dt"] * meta["write_every"]
@@ -150,7 +151,7 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
     fig.colorbar(sc, ax=axes, shrink=0.6, label="|u|")
     fig.suptitle(f"RPF 2D, test rollout {exp.fig3.rollout} ({profile}, {meta['num_particles_max']} particles)",
                  fontsize=9)
-    dest = figure_dir(results, "fig3")
+    dest = figure_dir(results, "fig3", out)
     save_figure(fig, dest, "fig3", dpi=150)
     plot_mse(records, dest / "fig3_mse.png", f"RPF 2D, {profile}: MSE against rollout step")
     write_table(mse_table(records), dest / "mse_steps.csv")
@@ -158,9 +159,13 @@ def plot(results, exp: S.Experiment, profile: str) -> Path:
     return dest
 
 
+def options(ap):
+    ap.add_argument("--out", default=None, help="figure folder (default <results>/fig3)")
+
+
 def main(args):
-    plot(args.results, S.load(args.profile), args.profile)
+    plot(args.results, S.load(args.profile), args.profile, args.out)
 
 
 if __name__ == "__main__":
-    profile_main(main, __doc__)
+    profile_main(main, __doc__, options)
