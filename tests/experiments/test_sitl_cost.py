@@ -18,7 +18,6 @@ checks the copy against its recorded digests); never trains, so GNS / SitL are l
 when .venv-lb is missing."""
 import csv
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -26,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sph_test_helpers import require_lb_env, seed_sitl_dataset
+from sph_test_helpers import require_lb_env, seed_sitl_dataset, sitl_env as _env
 
 from experiments.accuracy import plot_accuracy as A
 from sitl import settings as S
@@ -37,12 +36,6 @@ from lab.experiment import load_settings
 ROOT = Path(__file__).resolve().parents[2]
 SOLVER_M = (1, 2, 5, 10)        # the smoke profile's cost.coarsening; write_every W = 10
 W = 10
-
-
-def _env():
-    env = dict(os.environ, JAX_PLATFORMS="cpu", WANDB_MODE="disabled", PYTHONNOUSERSITE="1")
-    env.pop("VIRTUAL_ENV", None)
-    return env
 
 
 def _make(results):
