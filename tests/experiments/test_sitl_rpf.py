@@ -1,8 +1,10 @@
 """The reverse Poiseuille flow scene (sph/cases/rpf.py) and the dataset's force.py: the force has
 the right sign at every particle (the authors' solver gave all particles one force), and the
-analytical start-up profile tends to the steady one."""
+analytical start-up profile tends to the steady one; experiments/sitl's scene is the one its dataset
+was made from."""
 import importlib.util
 import json
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
@@ -167,3 +169,22 @@ def test_pushforward_is_off_as_in_the_paper_and_a_study_row_of_its_own():
         S.load("cpu", overrides={"study": {"pushforward": {"unrolls": [0, -1, 2, 3]}}})
     with pytest.raises(sph.ConfigError, match=r"study\.pushforward\.substeps\[0\]: L = 4 has no solver-alone run"):
         S.load("cpu", overrides={"study": {"pushforward": {"substeps": [4]}}})
+
+
+def test_the_sitl_folders_scene_is_the_one_its_dataset_was_made_from(sitl_smoke_dataset, tmp_path):
+    """experiments/sitl's `scene(run)` (the flow every model learns) against the smoke dataset's own
+    metadata, written by sitl/generate.py: particle count, spacing, time step, viscosity, density,
+    kernel, background pressure and the body force's magnitude."""
+    from lab.experiment import Experiment
+
+    exp = Experiment(Path(S.__file__).resolve().parents[1] / "experiments" / "sitl", "smoke", tmp_path)
+    meta = json.loads((Path(sitl_smoke_dataset) / "metadata.json").read_text())
+    for run in exp.runs:
+        scene, numerics = exp.study.scene(run)
+        assert scene.n == meta["num_particles_max"] and scene.dx == pytest.approx(meta["dx"])
+        assert numerics.dt == pytest.approx(meta["dt"]) and numerics.kernel == meta["kernel"]
+        assert numerics.p_bg_factor == pytest.approx(meta["p_bg_factor"])
+        assert scene.material.eta / scene.material.rho_ref == pytest.approx(meta["viscosity"])
+        assert scene.material.rho_ref == pytest.approx(meta["rho_ref"])
+        force = np.asarray(scene.body_force(jnp.asarray(scene.r)))
+        assert np.abs(force[:, 0]).max() == pytest.approx(meta["g_ext_magnitude"]) and not force[:, 1].any()

@@ -96,20 +96,28 @@ def test_number_neutral_names_harness_modules():
     assert studies | {"sph.cases.tgv", "sph.relax"} <= set(keys.code_modules([tgv2d / "study.py"]))
 
 
+def _imported(path: Path) -> list:
+    """The absolute module names `path` imports."""
+    mods = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        mods += [a.name for a in node.names] if isinstance(node, ast.Import) else \
+            [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
+    return mods
+
+
 def test_no_study_imports_another():
-    """An experiment folder imports only its own modules, the core and the harness."""
-    folders = [p for p in (ROOT / "experiments").iterdir() if p.is_dir()] + [ROOT / n for n in ("gradcheck", "inverse",
-                                                                                              "sitl")]
+    """An experiment folder imports only its own modules, the core, the harness and (experiments/sitl
+    alone) its library sitl/; the library imports no experiment folder."""
+    folders = [p for p in (ROOT / "experiments").iterdir() if p.is_dir()] + [ROOT / n for n in ("gradcheck", "inverse")]
     for folder in folders:
         for path in folder.glob("*.py"):
-            for node in ast.walk(ast.parse(path.read_text())):
-                mods = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                    [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
-                for mod in mods:
-                    top = mod.split(".")[0]
-                    other = mod.split(".")[1] if top == "experiments" and "." in mod else top
-                    assert top not in ("experiments", "gradcheck", "inverse", "sitl") or other == folder.name, \
-                        f"{path.relative_to(ROOT)}: imports {mod}"
+            for mod in _imported(path):
+                top = mod.split(".")[0]
+                other = mod.split(".")[1] if top == "experiments" and "." in mod else top
+                assert top not in ("experiments", "gradcheck", "inverse", "sitl") or other == folder.name, \
+                    f"{path.relative_to(ROOT)}: imports {mod}"
+    for path in (ROOT / "sitl").glob("*.py"):
+        assert not [m for m in _imported(path) if m.split(".")[0] in ("experiments", "gradcheck", "inverse")], path
 
 
 def test_core_never_imports_the_harness():
