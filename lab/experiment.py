@@ -62,8 +62,9 @@ and optionally, in study.py, where a folder needs more:
                   run step, whatever result.json holds: it answers "up to date" itself, and its result
                   is written again (the same bytes when nothing changed, so the stamp stays)
 
-A run may name the `groups` it belongs to (e.g. the figures that show it): `--group G` runs only those,
-and the Makefile's protocol rules give each group of a folder's rules.mk (GROUPS.<dir>) a stamp of its own.
+A run may name the `groups` it belongs to (e.g. the figures that show it): `--group G` runs only those
+and writes only the tables they go to, and the Makefile's protocol rules give each group of a folder's
+rules.mk (GROUPS.<dir>) a stamp of its own.
 
     python -m lab.experiment <dir> --profile smoke [--results R] [--only RUN ...] [--group G] [--method M ...]
                              [--no-progress] [--log-every N]
@@ -325,7 +326,7 @@ class Experiment:
             self.study.preflight(chosen)
         for run in chosen:
             self.run_one(run, progress, callback)
-        return self.write_table()
+        return self.write_table(None if only is None else [r.name for r in chosen])
 
     # -- what a run measures ------------------------------------------------------------------------
     def current(self, run) -> RunSpec:
@@ -385,11 +386,16 @@ class Experiment:
         save_record(self.out_dir / run.name, rec)
         return rec
 
-    def write_table(self):
+    def write_table(self, only=None):
         """Rebuild every current run's record and the metrics table(s) from exactly those runs (`TABLE`);
-        the table of metrics.csv's runs, or of the first table's when the runs go to several."""
+        the table of metrics.csv's runs, or of the first table's when the runs go to several. `only`
+        (run names, e.g. a group's): only the tables those runs go to, so that a group's step writes (and
+        its stamp lists) the tables of its own runs, not another group's."""
+        wanted = None if only is None else {self.table_path(r) for r in self.runs if r.name in only}
         rows = {}
         for run in self.runs:
+            if wanted is not None and self.table_path(run) not in wanted:
+                continue
             rows.setdefault(self.table_path(run), [])
             if self.state(run) == "current":
                 m = self.metrics(run)

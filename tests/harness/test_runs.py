@@ -317,3 +317,18 @@ def test_a_bad_compute_mode_is_named(tmp_path):
 
     with pytest.raises(ConfigError, match=r"COMPUTE.*'always'.*'sometimes'"):
         Experiment(_compute_folder(tmp_path, '\nCOMPUTE = "sometimes"\n'), "smoke", tmp_path / "results")
+
+
+def test_a_steps_tables_are_those_of_its_own_runs(tmp_path):
+    """A step that runs some runs (a group's, `--only`) writes the tables those runs go to and no other
+    (experiments/sitl: the table1 step does not rewrite fig3_runs.csv, so its stamp changes only with
+    its own runs); a step of every run writes every table."""
+    from lab.experiment import Experiment
+
+    folder = _compute_folder(tmp_path, '\nfrom lab.protocol import Table\n'
+                                       'TABLE = Table(rows="metrics", file=lambda r: "odd.csv" if r.value % 2 else "even.csv")\n')
+    exp = Experiment(folder, "smoke", tmp_path / "results")
+    table = exp.run_all(only=["v1"], progress=False)
+    assert list(table["run"]) == ["v1"] and (exp.out_dir / "odd.csv").exists() and not (exp.out_dir / "even.csv").exists()
+    exp.run_all(progress=False)
+    assert pd.read_csv(exp.out_dir / "even.csv")["run"].tolist() == ["v2"]
