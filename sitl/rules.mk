@@ -15,7 +15,7 @@ SITL_VENV   := .venv-lb/.stamp
 SITL_OUT    := $(RESULTS)/sitl
 SITL_DATA   := $(SITL_OUT)/data/2D_RPF/generate.json
 SITL_CONFIG := experiments/sitl/config.yaml
-SITL_METRICS := $(SITL_OUT)/table1_runs.done
+SITL_TABLE1_RUNS := $(SITL_OUT)/table1_runs.done
 SITL_ENV    := env WANDB_MODE=disabled
 SITL_CODE   := $(shell python3 -P lab/keys.py $(SITL)/generate.py $(SITL)/rpf_data.py 2>/dev/null)
 
@@ -35,7 +35,7 @@ SITL_TABLE1 := $(RESULTS)/table1/table1.csv $(RESULTS)/table1/table1.md
 table1: $(SITL_TABLE1)
 sitl: $(SITL_TABLE1)
 $(SITL_TABLE1): OUTS := $(SITL_TABLE1)
-$(SITL_TABLE1) &: $(SITL_METRICS) $(SITL)/table1.py $(SITL)/stats.py $(SITL)/fmt.py FORCE | $(SITL_VENV) $(VENV)
+$(SITL_TABLE1) &: $(SITL_TABLE1_RUNS) $(SITL)/table1.py $(SITL)/stats.py $(SITL)/fmt.py FORCE | $(SITL_VENV) $(VENV)
 	$(DELIVER) $(SITL_PY) $(SITL)/table1.py --profile $(PROFILE) --results $(RESULTS)
 
 # Accuracy against cost (sitl/cost.py): MSE_20 against inference time per coarse step for the fine

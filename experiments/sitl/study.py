@@ -33,7 +33,6 @@ Settings = S.Experiment
 """A profile of config.yaml: data, model, train, eval, fig3, cost, study (sitl/settings.py)."""
 
 COMPUTE = "always"
-TARGET = "table1"
 KINDS = ("fit", "fig3")
 NOT_KEYED = {"key": False}
 
