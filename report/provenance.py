@@ -107,10 +107,13 @@ def folder_digests(folder) -> dict:
 
 def restored(results) -> str:
     """Which folders of `results` came from which snapshot (`make restore`) and are still as restored,
-    or ''. A folder some target wrote into since (a file changed or added: it was made again here) is
-    not named; a restore record without digests (older) names every folder it copied. Each folder is
+    or ''. A folder some target wrote into since, every restored file of it changed, is not named; one
+    that keeps some restored files beside new ones (a shared folder such as ldc2d, whose Fig. 6 runs were
+    made again here and whose Fig. 7 runs were not) is named "in part", with how many of its files are
+    as restored; a restore record without digests (older) names every folder it copied. Each folder is
     named with the snapshot its files were first made for (a snapshot restored from an earlier one
-    passes the earlier one on), grouped: "a, b: from the snapshot of C (D); c: from ..."."""
+    passes the earlier one on, its "in part" too), grouped: "a, b [in part: ...]: from the snapshot of
+    C (D); c: from ..."."""
     p = Path(results) / RESTORED
     if not p.exists():
         return ""
@@ -119,21 +122,30 @@ def restored(results) -> str:
     origins = r.get("origins", {})
     groups = {}
     for f in r["folders"]:
-        if digests is None or folder_digests(Path(results) / f) == digests.get(f):
-            o = origins.get(f, {"commit": r["commit"], "date": r["date"]})
-            groups.setdefault((o["commit"], o["date"]), []).append(f)
+        o = origins.get(f, {"commit": r["commit"], "date": r["date"]})
+        tag = o.get("part", "")
+        if digests is not None:
+            cur, then = folder_digests(Path(results) / f), digests.get(f) or {}
+            kept = sum(cur.get(k) == v for k, v in then.items())
+            if not kept:
+                continue
+            if cur != then:
+                tag = f"[in part: {kept} of its {len(cur)} files as restored]"
+        groups.setdefault((o["commit"], o["date"]), []).append(f + (f" {tag}" if tag else ""))
     return "; ".join(f"{', '.join(fs)}: from the snapshot of {c} ({d})" for (c, d), fs in groups.items())
 
 
 def parse_restored(note: str) -> dict:
-    """folder -> {"commit", "date"} from a provenance's "restored from snapshot" line (`restored`)."""
+    """folder -> {"commit", "date"[, "part"]} from a provenance's "restored from snapshot" line
+    (`restored`); "part" is the "[in part: ...]" of a folder restored in part."""
     out = {}
     for group in filter(None, (g.strip() for g in (note or "").split("; "))):
         folders, _, origin = group.partition(": from the snapshot of ")
         commit, _, date = origin.rpartition(" (")
         for f in (x.strip() for x in folders.split(",")):
-            if f:
-                out[f] = {"commit": commit, "date": date.rstrip(")")}
+            name, _, part = f.partition(" [")
+            if name:
+                out[name] = {"commit": commit, "date": date.rstrip(")"), **({"part": "[" + part} if part else {})}
     return out
 
 

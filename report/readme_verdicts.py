@@ -62,6 +62,7 @@ def provenance(snapshot: Path) -> list:
     origins = prov_mod.parse_restored(p.get("restored from snapshot"))
     if origins:
         groups = Counter((o["commit"], o["date"]) for o in origins.values())
+        n_part = sum("part" in o for o in origins.values())
         parts = []
         for (commit, date), k in groups.items():
             osha, odirty = _short(commit)
@@ -69,5 +70,7 @@ def provenance(snapshot: Path) -> list:
                          + (", uncommitted changes" if odirty else "") + (f", {date}" if date else ""))
         text += (f" {len(origins)} of its target folders were restored from "
                  + ("an earlier snapshot" if len(groups) == 1 else "earlier snapshots")
-                 + f" ({'; '.join(parts)}) and not run again.")
+                 + f" ({'; '.join(parts)}) and not run again"
+                 + (f"; {n_part} of them only in part (their other files made for this snapshot)" if n_part else "")
+                 + ".")
     return [text]

@@ -64,6 +64,38 @@ def pytest_configure(config):
     (few tests, minutes each) last and made them the tail of the run."""
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
+    config.addinivalue_line("markers", "compile_bound: the module's programs are compiled with XLA's optimizations "
+                                       "off (jax_disable_most_optimizations), see _compile_bound")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compile_bound(request):
+    """A module marked `pytestmark = pytest.mark.compile_bound` compiles its programs with most of XLA's
+    optimizations off (`jax_disable_most_optimizations`: LLVM -O0), in this process and in the processes
+    it starts (the environment variable), for the module's duration. Module-scoped and autouse, so its
+    module-scoped fixtures compile alike. For modules whose programs run a few steps: compiling them is
+    most of their time. Measured on this project's 2-core machine (2026-12-07, cold compilation cache):
+    test_cell_list's pair-set and row-blocked tests 168 -> 116 CPU-s. Not for a module that runs a
+    program for thousands of steps: the droplet and tank-at-rest tests took 76 -> 386 s at -O0, and the
+    smoke pipelines 1.5-3.5x longer. Results differ from the optimized programs' by round-off only; a
+    program compiled here and reused by a later module in the same worker runs unoptimized (correct,
+    slower). SPH_TEST_XLA_FAST=0 turns it off with the other speed settings above."""
+    if request.node.get_closest_marker("compile_bound") is None or os.environ.get("SPH_TEST_XLA_FAST", "1") == "0":
+        yield
+        return
+    import jax
+
+    before = (jax.config.read("jax_disable_most_optimizations"), os.environ.get("JAX_DISABLE_MOST_OPTIMIZATIONS"))
+    jax.config.update("jax_disable_most_optimizations", True)
+    os.environ["JAX_DISABLE_MOST_OPTIMIZATIONS"] = "1"
+    try:
+        yield
+    finally:
+        jax.config.update("jax_disable_most_optimizations", before[0])
+        if before[1] is None:
+            os.environ.pop("JAX_DISABLE_MOST_OPTIMIZATIONS", None)
+        else:
+            os.environ["JAX_DISABLE_MOST_OPTIMIZATIONS"] = before[1]
 
 
 def pytest_collection_modifyitems(session, config, items):

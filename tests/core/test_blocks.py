@@ -10,6 +10,8 @@ from sph import blocks
 from sph.cases import tgv
 from sph.density import Summation
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 
 @pytest.mark.parametrize("n,k", [(6400, 50), (1000, 231), (7, 3)])
 def test_block_rows_even_out_and_cover_the_rows(n, k, monkeypatch):

@@ -28,6 +28,8 @@ from sph.lattice import cartesian, jitter
 from sph.neighbors import make_neighbor_search
 from sph_test_helpers import kinetic_energy, listed_pairs
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 
 DOMAINS = {
     "2d-periodic": Domain(box=(1.0, 1.0), periodic=(True, True)),

@@ -14,6 +14,8 @@ import sph
 from sph import rollout
 from sph_test_helpers import jittered_lattice, momentum, periodic_scene
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 N_STEPS = 50
 EFFECTS = {
     "standard": sph.Effects(),

@@ -14,6 +14,8 @@ import sph
 from sph import density, riemann
 from sph_test_helpers import lattice, per_particle, periodic_pairs, periodic_scene
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 RHO_REF = 1000.0
 
 # (kernel, h/dx, tolerance on |rho/rho_ref - 1|). The tolerance is the lattice-sum error of the

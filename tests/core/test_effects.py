@@ -13,6 +13,8 @@ import sph
 from sph import density, heat, momentum, riemann, walls
 from sph.cases import tank, tgv
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 DX = 0.05
 MAT = sph.Material(eta=0.01)
 PHYSICS = {

@@ -13,6 +13,8 @@ import pytest
 import sph
 from sph.cases import ldc, tgv
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 MAT = sph.Material(eta=0.01)
 
 

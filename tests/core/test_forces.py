@@ -9,6 +9,8 @@ import sph
 from sph.cases import tgv
 from sph.forces import ConstantForce, ReversePoiseuilleForce
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 DX = 0.05
 
 

@@ -19,6 +19,8 @@ from sph.lattice import cartesian, jitter
 from sph.rollout import scan_rollout
 from sph_test_helpers import kinetic_energy
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 DX = 0.05
 N_STEPS = 20
 EPS = 1e-6

@@ -24,6 +24,8 @@ from sph.scene import Scene
 from sph.state import FLUID
 from sph_test_helpers import UNIT_SQUARE, jittered_lattice, lattice, per_particle, periodic_pairs
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 KAPPA, C_P = 7.313, 305.27          # the hot channel's fluid (JAX-SPH cases/ht.py)
 MAT = sph.Material(rho_ref=1.0, eta=0.01, u_ref=1.0, kappa=KAPPA, c_p=C_P)
 ALPHA = KAPPA / (MAT.rho_ref * C_P)

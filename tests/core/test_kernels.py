@@ -12,6 +12,8 @@ from scipy.integrate import quad
 
 from sph.kernels import make_kernel
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 H = 0.7  # a non-unit smoothing length, so a wrong power of h in sigma or dW/dr shows up
 CASES = [("quintic", 1), ("quintic", 2), ("quintic", 3),
          ("wendland_c2", 2), ("wendland_c2", 3),

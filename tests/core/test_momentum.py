@@ -17,6 +17,8 @@ import pytest
 from sph import momentum, riemann
 from sph_test_helpers import jittered_lattice, lattice, per_particle, periodic_pairs
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 RHO = 1.0
 K = 2.0 * np.pi
 OPERATOR_CASES = [("quintic", 1.0, "adami"), ("quintic", 1.0, "riemann"), ("wendland_c4", 1.3, "adami")]

@@ -20,6 +20,8 @@ from sph.domain import Domain
 from sph.neighbors import make_neighbor_search
 from sph_test_helpers import brute_force_neighbors, jittered_lattice, listed_pairs, periodic_scene
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 CUTOFF, SKIN = 0.15, 0.025
 
 

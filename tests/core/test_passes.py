@@ -16,6 +16,8 @@ from sph.fields import Fields
 from sph.passes import Context, run
 from sph.views import MissingField
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 MAT = sph.Material(eta=0.01)
 HOT = sph.Material(eta=0.01, kappa=0.1, c_p=1.0)
 SCENES = {

@@ -9,6 +9,8 @@ import sph
 from sph.cases import tgv
 from sph.relax import Relaxation, relax
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 DX = 0.1
 MAT = sph.Material(rho_ref=1.0, eta=0.01, u_ref=1.0)
 

@@ -25,6 +25,8 @@ from sph.lattice import cartesian, jitter
 from sph.scene import Scene
 from sph.state import FLUID, WALL
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 MAT = sph.Material(rho_ref=1.0, eta=0.01, u_ref=1.0)
 
 

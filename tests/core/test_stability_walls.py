@@ -25,6 +25,8 @@ from sph.lattice import cartesian, wall_layers
 from sph.scene import Scene
 from sph.state import FLUID, WALL
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 DX = 0.05
 LAYERS = 3
 OFF = LAYERS * DX

@@ -14,6 +14,8 @@ from sph import start_checks as checks
 from sph.cases import droplet, ldc, tank, tgv, tgv3d
 from sph.lattice import jitter
 
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
+
 MAT = sph.Material(eta=0.01)
 
 

@@ -9,10 +9,13 @@ from dataclasses import dataclass
 
 import jax
 import numpy as np
+import pytest
 
 import sph
 from sph.cases import tgv
 from sph.rates import Rates
+
+pytestmark = pytest.mark.compile_bound  # its programs run a few steps: XLA -O0 (conftest._compile_bound)
 
 
 @dataclass(frozen=True)

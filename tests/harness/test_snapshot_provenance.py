@@ -75,8 +75,10 @@ def test_dirty_paths_reads_git_status_of_tracked_files(tmp_path, monkeypatch):
 
 
 def test_a_restored_folder_made_again_here_is_no_longer_named_restored(tmp_path):
-    """`make restore` records the digest of every file it copies; a folder a target wrote into since
-    (a file changed, or one added) was made here, so the provenance stops calling it restored."""
+    """`make restore` records the digest of every file it copies; a folder whose restored files were all
+    made again here is no longer called restored, and one that keeps some restored files beside new ones
+    (a shared folder, one target of it run again) is named "in part", with the count, here and in the
+    README line: a partial re-run does not pass its other, older files off as made here."""
     from report import restore
 
     snap, res = tmp_path / "snap", tmp_path / "results"
@@ -89,6 +91,18 @@ def test_a_restored_folder_made_again_here_is_no_longer_named_restored(tmp_path)
     (res / "fig10" / "metrics.csv").write_text("a\n2\n")              # fig10 made again here
     assert provenance.restored(res).startswith("fig9: from the snapshot of abc1234")
     (res / "fig9" / "fig9.png").write_bytes(b"new")                   # a new figure beside the restored table
+    note = provenance.restored(res)
+    assert note == "fig9 [in part: 1 of its 2 files as restored]: from the snapshot of abc1234 (2026-12-05)", note
+    assert provenance.parse_restored(note) == {"fig9": {"commit": "abc1234", "date": "2026-12-05",
+                                                        "part": "[in part: 1 of its 2 files as restored]"}}
+    made = tmp_path / "made"
+    made.mkdir()
+    (made / provenance.FILE).write_text(json.dumps({"snapshot_commit": "ccc3333", "snapshot_date": "d",
+                                                     "restored from snapshot": note}))
+    line = readme_verdicts.provenance(made)[0]
+    assert "1 of its target folders were restored from an earlier snapshot" in line, line
+    assert "1 of them only in part (their other files made for this snapshot)" in line, line
+    (res / "fig9" / "metrics.csv").write_text("a\n3\n")               # its last restored file made again
     assert provenance.restored(res) == ""
     # a restore record without digests (written before they were kept) names every folder it copied
     note = json.loads((res / provenance.RESTORED).read_text())
