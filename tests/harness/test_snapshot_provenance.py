@@ -74,6 +74,16 @@ def test_dirty_paths_reads_git_status_of_tracked_files(tmp_path, monkeypatch):
     assert provenance.dirty_paths() == ["a.txt"] and provenance.commit().endswith(provenance.DIRTY)
 
 
+def _readme_line(tmp_path, note: str) -> str:
+    """The README's provenance line of a snapshot (commit ccc3333) whose provenance has `note` as its
+    "restored from snapshot" line."""
+    made = tmp_path / "made"
+    made.mkdir()
+    (made / provenance.FILE).write_text(json.dumps({"snapshot_commit": "ccc3333", "snapshot_date": "d",
+                                                     "restored from snapshot": note}))
+    return readme_verdicts.provenance(made)[0]
+
+
 def test_a_restored_folder_made_again_here_is_no_longer_named_restored(tmp_path):
     """`make restore` records the digest of every file it copies; a folder whose restored files were all
     made again here is no longer called restored, and one that keeps some restored files beside new ones
@@ -95,11 +105,7 @@ def test_a_restored_folder_made_again_here_is_no_longer_named_restored(tmp_path)
     assert note == "fig9 [in part: 1 of its 2 files as restored]: from the snapshot of abc1234 (2026-12-05)", note
     assert provenance.parse_restored(note) == {"fig9": {"commit": "abc1234", "date": "2026-12-05",
                                                         "part": "[in part: 1 of its 2 files as restored]"}}
-    made = tmp_path / "made"
-    made.mkdir()
-    (made / provenance.FILE).write_text(json.dumps({"snapshot_commit": "ccc3333", "snapshot_date": "d",
-                                                     "restored from snapshot": note}))
-    line = readme_verdicts.provenance(made)[0]
+    line = _readme_line(tmp_path, note)
     assert "1 of its target folders were restored from an earlier snapshot" in line, line
     assert "1 of them only in part (their other files made for this snapshot)" in line, line
     (res / "fig9" / "metrics.csv").write_text("a\n3\n")               # its last restored file made again
@@ -129,10 +135,6 @@ def test_a_folder_restored_twice_keeps_the_snapshot_it_was_made_for(tmp_path):
                     "fig9: from the snapshot of aaa1111 (with uncommitted changes) (2026-12-05 18:21 UTC)"), note
     assert provenance.parse_restored(note)["fig9"] == {"commit": "aaa1111 (with uncommitted changes)",
                                                        "date": "2026-12-05 18:21 UTC"}
-    made = tmp_path / "made"
-    made.mkdir()
-    (made / provenance.FILE).write_text(json.dumps({"snapshot_commit": "ccc3333", "snapshot_date": "d",
-                                                     "restored from snapshot": note}))
-    line = readme_verdicts.provenance(made)[0]
+    line = _readme_line(tmp_path, note)
     assert "2 of its target folders were restored from earlier snapshots (1 from commit `bbb2222`" in line, line
     assert "1 from commit `aaa1111`, uncommitted changes, 2026-12-05 18:21 UTC" in line, line
