@@ -77,9 +77,10 @@ def _compile_bound(request):
     most of their time. Measured on this project's 2-core machine (2026-12-07, cold compilation cache):
     test_cell_list's pair-set and row-blocked tests 168 -> 116 CPU-s. Not for a module that runs a
     program for thousands of steps: the droplet and tank-at-rest tests took 76 -> 386 s at -O0, and the
-    smoke pipelines 1.5-3.5x longer. Results differ from the optimized programs' by round-off only; a
-    program compiled here and reused by a later module in the same worker runs unoptimized (correct,
-    slower). SPH_TEST_XLA_FAST=0 turns it off with the other speed settings above."""
+    smoke pipelines (ldc2d, dambreak2d, tgv3d, stability) 2.2-3.6x longer. Results differ from the
+    optimized programs' by round-off only; a program compiled here and reused by a later module in the
+    same worker runs unoptimized (correct, slower). SPH_TEST_XLA_FAST=0 turns it off with the other
+    speed settings above."""
     if request.node.get_closest_marker("compile_bound") is None or os.environ.get("SPH_TEST_XLA_FAST", "1") == "0":
         yield
         return
