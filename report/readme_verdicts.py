@@ -71,6 +71,6 @@ def provenance(snapshot: Path) -> list:
         text += (f" {len(origins)} of its target folders were restored from "
                  + ("an earlier snapshot" if len(groups) == 1 else "earlier snapshots")
                  + f" ({'; '.join(parts)}) and not run again"
-                 + (f"; {n_part} of them only in part (their other files made for this snapshot)" if n_part else "")
+                 + (f", {n_part} of them only in part (their other files made for this snapshot)" if n_part else "")
                  + ".")
     return [text]
