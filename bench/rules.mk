@@ -2,7 +2,7 @@
 # docstrings of bench/bench_scaling.py, bench/bench_peer.py, bench/bench_neighbors.py, bench/bench_speed.py;
 # bench/bench_ab.py and bench/bench_step_profile.py are run by hand). Included by the top-level Makefile,
 # which defines PY and VENV. Always re-run (timings, not products).
-.PHONY: scaling bench-peer bench-neighbors bench-speed bench-devices
+.PHONY: scaling bench-peer bench-neighbors bench-speed bench-devices bench-suite
 
 scaling: | $(VENV)
 	nice $(PY) bench/bench_scaling.py --out results/bench
@@ -28,3 +28,8 @@ bench-speed: | $(VENV)
 DEVICES_LIST ?= 1 2 4
 bench-devices: | $(VENV)
 	nice $(PY) bench/bench_devices.py --devices $(DEVICES_LIST)
+
+# where the test suite's time goes (bench/bench_suite.py): per test file, CPU in the pytest workers and
+# in the processes they start, and JAX's tracing / XLA compile time, from a fresh compilation cache
+bench-suite: | $(VENV) .venv-lb/.stamp
+	$(PY) bench/bench_suite.py --log results/bench/suite_cost.jsonl
