@@ -5,8 +5,9 @@ Writes into its own results folder, never results/.
 
     .venv/bin/python scripts/roundoff_spread.py experiments/ldc2d paper sph_dx0.02 1e-12 /tmp/ldcpert
 
-(Fig. 6, sph, 2026-12-07: u_rms 0.01136 / 0.01169 / 0.01178 and v_rms 0.00954 / 0.01006 / 0.01007
-for the make run, amp 0 and amp 1e-12: about 4-5 % after 44000 steps.)
+(Fig. 6, sph, 2026-12-07: u_rms 0.01136 / 0.01169 / 0.01178 / 0.01238 / 0.01246 and v_rms
+0.00954 / 0.01006 / 0.01007 / 0.01178 / 0.01241 for the make run, amp 0, 1e-12, 1e-11 and 1e-10:
+up to about 30 % after 44000 steps.)
 """
 import json
 import sys
