@@ -35,6 +35,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from lab.atomic import write_text
+
 ROOT = Path(__file__).resolve().parents[1]
 COLUMNS = ["wall_s", "cpu_s", "children_cpu_s", "trace_s", "lower_s", "compile_s", "cache_saved_s"]
 
@@ -82,7 +84,7 @@ def report(table: pd.DataFrame, wall: float = None) -> str:
                  f"in their child processes")
     lines.append(f"JAX in the workers (elapsed seconds, as JAX times them): tracing + lowering "
                  f"{tot['trace_s'] + tot['lower_s']:.0f} s, XLA compilation {tot['compile_s']:.0f} s, beside "
-                 f"{tot['cpu_s']:.0f} CPU-s of the workers; the persistent cache saved {tot['cache_saved_s']:.0f} s")
+                 f"{tot['cpu_s']:.0f} CPU-s of the workers; the persistent cache saved {round(tot['cache_saved_s'])} s")
     if wall is not None:
         lines.append(f"pytest wall time {wall:.0f} s on {os.cpu_count()} cores "
                      f"(CPU / wall = {tot['cpu_total_s'] / wall:.2f} cores busy on average)")
@@ -98,7 +100,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     wall = None if args.summarise else run_suite(args.targets, args.workers, args.log)
     table = per_file(args.log)
-    table.to_csv(args.log.with_suffix(".csv"))
+    write_text(args.log.with_suffix(".csv"), table.to_csv())
     print(report(table, wall))
 
 
